@@ -1,0 +1,42 @@
+#pragma once
+/// \file ImagePyramid.hpp
+/// Grey-level image pyramid with gradients, the only image representation the estimators use.
+/// Intensities are float in 8-bit grey levels (0..255) whatever the input depth, so that every
+/// photometric parameter (robust scale, bias) has one unit.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+namespace stereo_ground_dem {
+
+class ImagePyramid {
+ public:
+  enum class ColorOrder { kBgr, kRgb };
+
+  struct Level {
+    cv::Mat image;  ///< CV_32F, grey levels
+    cv::Mat grad_u; ///< CV_32F, d image / d u (central differences) [grey/px]
+    cv::Mat grad_v; ///< CV_32F, d image / d v [grey/px]
+  };
+
+  ImagePyramid() = default;
+  /// Builds `levels` levels (level 0 = input resolution) with cv::pyrDown.
+  /// Accepts CV_8U and CV_16U images with 1, 3 (colour order as given) or 4 channels, and CV_32F
+  /// single-channel images already in grey levels. Throws std::invalid_argument otherwise.
+  ImagePyramid(const cv::Mat& image, int levels, ColorOrder order = ColorOrder::kBgr);
+
+  /// Converts any accepted input to single-channel CV_32F grey levels (0..255).
+  static cv::Mat toGrayFloat(const cv::Mat& image, ColorOrder order = ColorOrder::kBgr);
+
+  int levels() const { return static_cast<int>(levels_.size()); }
+  const Level& level(int l) const { return levels_.at(static_cast<size_t>(l)); }
+  int width(int l = 0) const { return level(l).image.cols; }
+  int height(int l = 0) const { return level(l).image.rows; }
+  bool empty() const { return levels_.empty(); }
+
+ private:
+  std::vector<Level> levels_;
+};
+
+}  // namespace stereo_ground_dem

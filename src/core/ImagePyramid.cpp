@@ -1,0 +1,49 @@
+#include "stereo_ground_dem/ImagePyramid.hpp"
+
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+cv::Mat ImagePyramid::toGrayFloat(const cv::Mat& image, ColorOrder order) {
+  if (image.empty()) throw std::invalid_argument("image is empty");
+  const int depth = image.depth();
+  const int ch = image.channels();
+  if (depth != CV_8U && depth != CV_16U && !(depth == CV_32F && ch == 1)) {
+    throw std::invalid_argument("unsupported image depth (expected 8-bit, 16-bit or float grey)");
+  }
+  if (ch != 1 && ch != 3 && ch != 4) {
+    throw std::invalid_argument("unsupported channel count " + std::to_string(ch));
+  }
+  cv::Mat gray;
+  if (ch == 1) {
+    gray = image;
+  } else {
+    const bool rgb = order == ColorOrder::kRgb;
+    const int code = ch == 3 ? (rgb ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY)
+                             : (rgb ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY);
+    cv::cvtColor(image, gray, code);
+  }
+  cv::Mat out;
+  const double scale = depth == CV_16U ? 255.0 / 65535.0 : 1.0;
+  gray.convertTo(out, CV_32F, scale);
+  return out;
+}
+
+ImagePyramid::ImagePyramid(const cv::Mat& image, int levels, ColorOrder order) {
+  if (levels < 1) throw std::invalid_argument("ImagePyramid needs at least one level");
+  levels_.resize(static_cast<size_t>(levels));
+  levels_[0].image = toGrayFloat(image, order);
+  if (levels_[0].image.data == image.data) levels_[0].image = levels_[0].image.clone();
+  for (int l = 1; l < levels; ++l) {
+    cv::pyrDown(levels_[static_cast<size_t>(l - 1)].image, levels_[static_cast<size_t>(l)].image);
+  }
+  const cv::Mat kernel = (cv::Mat_<float>(1, 3) << -0.5f, 0.0f, 0.5f);
+  for (auto& lv : levels_) {
+    cv::filter2D(lv.image, lv.grad_u, CV_32F, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REPLICATE);
+    cv::filter2D(lv.image, lv.grad_v, CV_32F, kernel.t(), cv::Point(-1, -1), 0.0,
+                 cv::BORDER_REPLICATE);
+  }
+}
+
+}  // namespace stereo_ground_dem
