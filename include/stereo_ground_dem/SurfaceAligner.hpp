@@ -1,0 +1,135 @@
+#pragma once
+/// \file SurfaceAligner.hpp
+/// One pyramid level of the direct ground-surface estimation (METHOD.md sections 2-4): Gauss-Newton
+/// with the inverse compositional formulation over the reference image and one or more other
+/// images, jointly for the mesh heights, the reference camera's motion and per-image gain/bias.
+///
+/// The heights live on a fine GroundGrid. A level estimates an increment z = z0 + B theta in the
+/// span of a basis B (the piecewise-linear prolongation from a coarser mesh for hierarchical
+/// meshing, a plane for the start-up plane fit, or the identity). The surface is always rendered
+/// with the fine mesh, so the objective is the same at every level; only its subspace and the
+/// image resolution change.
+///
+/// Cost (all terms are sums of squares, in chi^2-like units):
+///   C = C_D + C_S + C_P, and each step adds the update constraint C_U = sum_c mu_c dtheta_c^2;
+///   C_D = 4^level / sigma^2 * sum_pairs sum_pixels rho(I0[u] - a_j Ij[H_j u] - b_j), rho Cauchy;
+///   C_S = lambda_s * sum_stencils (s / h^2)^2 (z_a - 2 z_b + z_c)^2 over the fine grid's rows, columns
+///         and diagonals (h = s or s sqrt 2), approximately lambda_s * integral of squared curvature;
+///   C_P = sum_v info_v (z_v - prior_v)^2.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCore>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/GroundGrid.hpp"
+#include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/PhotometricParams.hpp"
+#include "stereo_ground_dem/Se3.hpp"
+#include "stereo_ground_dem/StereoRig.hpp"
+
+namespace stereo_ground_dem {
+
+struct SurfaceAlignerOptions {
+  int max_iterations = 8;                  ///< Gauss-Newton iterations per level
+  int max_step_halvings = 2;               ///< a step that raises the cost is halved this often, then rejected
+  double robust_scale_grey = 6.0;          ///< Cauchy scale [grey levels]; <= 0: plain least squares
+  double image_noise_std_grey = 2.0;       ///< sigma of the photometric residual [grey levels]
+  double smoothness_weight = 200.0;        ///< lambda_s [m^2]
+  double min_depth_m = 3.0;                ///< triangles need all vertices at camera depth >= this [m]
+  double max_depth_m = 40.0;               ///< ... and <= this [m]
+  double max_lateral_m = 25.0;             ///< ... and |camera x| <= this [m]
+  double converged_height_step_m = 5e-4;   ///< stop when the largest height update is below [m]
+  double converged_translation_m = 1e-4;   ///< ... and the motion update below [m]
+  double converged_rotation_rad = 1e-5;    ///< ... and [rad]
+  int border_margin_px = 2;                ///< reference pixels this close to the border are unused
+  double dark_level_grey = 1.5;            ///< reference / target values at or below: not used
+  double saturated_level_grey = 253.5;     ///< values at or above: not used
+  double outside_penalty_factor = 3.0;     ///< a pixel warped outside its target costs rho(factor * scale)
+  bool estimate_motion = false;            ///< 6-DoF twist of the reference camera
+
+  bool isValid(std::string* why) const;
+};
+
+/// One image paired with the reference image.
+struct AlignerTarget {
+  const ImagePyramid* pyramid = nullptr;
+  /// true: the camera moves with the reference (stereo partner), its pose relative to the
+  /// reference is target_T_reference; false: its pose in the ground frame, target_T_ground, is known.
+  bool rig_fixed = true;
+  Eigen::Isometry3d target_T_reference = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d target_T_ground = Eigen::Isometry3d::Identity();
+  bool estimate_photometric = true;
+};
+
+/// What is estimated; updated in place by align().
+struct SurfaceState {
+  Eigen::Isometry3d camera_T_ground = Eigen::Isometry3d::Identity();  ///< the reference camera
+  Eigen::VectorXd heights;                     ///< one per fine grid vertex [m]; NaN = not a surface
+  std::vector<PhotometricParams> photometric;  ///< one per target
+};
+
+/// A Gaussian prior on the fine heights (incremental mode).
+struct HeightPrior {
+  Eigen::VectorXd mean;         ///< [m]
+  Eigen::VectorXd information;  ///< [1/m^2]; 0 = no prior for this vertex
+};
+
+struct AlignmentProblem {
+  const ImagePyramid* reference = nullptr;
+  int level = 0;                         ///< pyramid level used for all images
+  const StereoRig* rig = nullptr;        ///< intrinsics at level 0
+  const GroundGrid* grid = nullptr;      ///< the fine grid the heights live on
+  std::vector<AlignerTarget> targets;
+  /// z = z0 + basis * theta; nullptr: the identity (every fine height is free).
+  const Eigen::SparseMatrix<double, Eigen::RowMajor>* basis = nullptr;
+  /// mu per basis column (or per fine vertex with the identity basis) [1/m^2 for heights].
+  Eigen::VectorXd update_weight;
+  const HeightPrior* prior = nullptr;    ///< optional
+  /// Optional per-vertex mask (fine grid, 1 = may be used); empty: all vertices may be used.
+  std::vector<uint8_t> vertex_mask;
+  bool estimate_heights = true;
+};
+
+struct AlignmentReport {
+  int iterations = 0;
+  int accepted_steps = 0;
+  bool converged = false;
+  bool degenerate = false;           ///< the normal equations could not be solved
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
+  int valid_pixels = 0;              ///< pixel-pair samples in the data term at the end
+  int outside_pixels = 0;            ///< samples warped outside their target image
+  double median_abs_residual_grey = 0.0;
+  int working_triangles = 0;
+  int active_vertices = 0;
+  /// Per fine vertex, from the final linearization: diagonal of the data term's normal matrix
+  /// (information about the height) [1/m^2], and the number of pixels in its triangles.
+  Eigen::VectorXd vertex_information;
+  Eigen::VectorXi vertex_pixels;
+  /// Information of the motion (6x6, data term, heights marginalized) if motion was estimated.
+  Matrix6d motion_information = Matrix6d::Zero();
+};
+
+class SurfaceAligner {
+ public:
+  explicit SurfaceAligner(const SurfaceAlignerOptions& options);
+
+  /// Runs Gauss-Newton at problem.level and updates `state`. Throws std::invalid_argument on an
+  /// inconsistent problem (missing images, sizes that do not match the grid, ...).
+  AlignmentReport align(const AlignmentProblem& problem, SurfaceState& state) const;
+
+  /// The surface's inverse depth [1/m] at every reference pixel of `level` (0 = no surface), and
+  /// optionally the triangle label of each pixel (-1 none); z-buffered like the estimation.
+  cv::Mat renderInverseDepth(const AlignmentProblem& problem, const SurfaceState& state,
+                             cv::Mat* labels = nullptr) const;
+
+  const SurfaceAlignerOptions& options() const { return options_; }
+
+ private:
+  SurfaceAlignerOptions options_;
+};
+
+}  // namespace stereo_ground_dem

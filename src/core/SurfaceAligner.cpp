@@ -1,0 +1,752 @@
+#include "stereo_ground_dem/SurfaceAligner.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "stereo_ground_dem/PlaneGeometry.hpp"
+#include "stereo_ground_dem/TriangleRasterizer.hpp"
+
+namespace stereo_ground_dem {
+
+bool SurfaceAlignerOptions::isValid(std::string* why) const {
+  auto bad = [why](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (max_iterations < 0) return bad("max_iterations must be >= 0");
+  if (max_step_halvings < 0) return bad("max_step_halvings must be >= 0");
+  if (!(image_noise_std_grey > 0.0)) return bad("image_noise_std_grey must be > 0");
+  if (!(smoothness_weight >= 0.0)) return bad("smoothness_weight must be >= 0");
+  if (!(min_depth_m > 0.0) || !(max_depth_m > min_depth_m)) {
+    return bad("need 0 < min_depth_m < max_depth_m");
+  }
+  if (!(max_lateral_m > 0.0)) return bad("max_lateral_m must be > 0");
+  if (border_margin_px < 1) return bad("border_margin_px must be >= 1");
+  if (!(saturated_level_grey > dark_level_grey)) return bad("saturated_level_grey must exceed dark_level_grey");
+  if (!(outside_penalty_factor >= 0.0)) return bad("outside_penalty_factor must be >= 0");
+  return true;
+}
+
+namespace {
+
+using Matrix32d = Eigen::Matrix<double, 3, 2>;
+using Matrix36d = Eigen::Matrix<double, 3, 6>;
+using Matrix62d = Eigen::Matrix<double, 6, 2>;
+using SpMat = Eigen::SparseMatrix<double>;
+
+/// Per working triangle and pair: sums over its pixels of the inverse compositional Jacobian in
+/// the plane-increment space (delta, 3), with the photometric (I0, 1) and motion parts.
+struct TriangleAccumulator {
+  Eigen::Matrix3d dd = Eigen::Matrix3d::Zero();  ///< sum w Jd^T Jd
+  Eigen::Vector3d de = Eigen::Vector3d::Zero();  ///< sum w Jd^T e
+  Matrix32d dp = Matrix32d::Zero();              ///< sum w Jd^T (I0, 1)
+  Matrix36d dm = Matrix36d::Zero();              ///< sum w Jd^T Jm (world-fixed pairs)
+};
+
+struct PairAccumulator {
+  Eigen::Matrix2d pp = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d pe = Eigen::Vector2d::Zero();
+  Matrix6d mm = Matrix6d::Zero();
+  Matrix62d mp = Matrix62d::Zero();
+  Vector6d me = Vector6d::Zero();
+  double cost = 0.0;  ///< sum rho(e) incl. outside penalties (unscaled)
+  int valid = 0;
+  int outside = 0;
+};
+
+struct TriangleGeometry {
+  std::array<int, 3> vertex;       ///< fine vertex indices
+  std::array<int, 3> local;        ///< compact active indices
+  Eigen::Matrix3d heights_to_plane;
+  // per evaluation:
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d dm_dz = Eigen::Matrix3d::Zero();
+  bool drawn = false;
+};
+
+struct PairContext {
+  Eigen::Isometry3d target_T_reference;
+  Eigen::Vector3d t_prime;  ///< R_j^T t_j
+  bool horizontal_only;     ///< R = I and t = (tx, 0, 0): warps move along rows only
+  int photo_index = -1;     ///< first global index of (dg, db), -1 when fixed
+  PhotometricParams photometric;
+  const cv::Mat* image;
+};
+
+struct Evaluation {
+  std::vector<std::vector<TriangleAccumulator>> tri;  ///< [pair][working triangle]
+  std::vector<PairAccumulator> pair;
+  std::vector<int> tri_pixels;
+  std::vector<float> abs_residuals;
+  double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
+  double total() const { return data_cost + smoothness_cost + prior_cost; }
+};
+
+inline float bilinear(const cv::Mat& img, float u, float v) {
+  const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+  const float fu = u - static_cast<float>(u0), fv = v - static_cast<float>(v0);
+  const float* r0 = img.ptr<float>(v0) + u0;
+  const float* r1 = img.ptr<float>(v0 + 1) + u0;
+  return (1.0f - fv) * ((1.0f - fu) * r0[0] + fu * r0[1]) + fv * ((1.0f - fu) * r1[0] + fu * r1[1]);
+}
+
+/// Everything about one level that stays fixed while it iterates.
+class LevelSolver {
+ public:
+  LevelSolver(const SurfaceAlignerOptions& o, const AlignmentProblem& p, const SurfaceState& s)
+      : opt_(o), prob_(p) {
+    const GroundGrid& g = *p.grid;
+    rig_ = p.rig->atLevel(p.level);
+    ref_ = &p.reference->level(p.level);
+    width_ = ref_->image.cols;
+    height_ = ref_->image.rows;
+    data_scale_ = std::ldexp(1.0, 2 * p.level) / (o.image_noise_std_grey * o.image_noise_std_grey);
+    selectWorkingSet(g, s);
+    buildBasis();
+    buildSmoothness(g);
+    global_count_ = o.estimate_motion ? 6 : 0;
+    photo_index_.assign(p.targets.size(), -1);
+    for (size_t j = 0; j < p.targets.size(); ++j) {
+      if (p.targets[j].estimate_photometric) {
+        photo_index_[j] = global_count_;
+        global_count_ += 2;
+      }
+    }
+  }
+
+  int activeCount() const { return static_cast<int>(active_.size()); }
+  int workingTriangles() const { return static_cast<int>(tris_.size()); }
+  bool empty() const { return tris_.empty(); }
+
+  std::vector<PairContext> pairs(const SurfaceState& s) const {
+    std::vector<PairContext> out(prob_.targets.size());
+    for (size_t j = 0; j < out.size(); ++j) {
+      const AlignerTarget& t = prob_.targets[j];
+      PairContext& c = out[j];
+      c.target_T_reference =
+          t.rig_fixed ? t.target_T_reference : t.target_T_ground * s.camera_T_ground.inverse();
+      const Eigen::Matrix3d& r = c.target_T_reference.linear();
+      const Eigen::Vector3d& tt = c.target_T_reference.translation();
+      c.t_prime = r.transpose() * tt;
+      c.horizontal_only = (r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12 &&
+                          std::abs(tt.y()) < 1e-12 && std::abs(tt.z()) < 1e-12;
+      c.photo_index = photo_index_[j];
+      c.photometric = s.photometric[j];
+      c.image = &t.pyramid->level(prob_.level).image;
+    }
+    return out;
+  }
+
+  /// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
+  void evaluate(const SurfaceState& s, Evaluation* ev, TriangleRasterizer* raster) {
+    const std::vector<PairContext> pc = pairs(s);
+    const size_t np = pc.size();
+    const size_t nt = tris_.size();
+    ev->tri.assign(np, std::vector<TriangleAccumulator>(nt));
+    ev->pair.assign(np, PairAccumulator());
+    ev->tri_pixels.assign(nt, 0);
+    ev->abs_residuals.clear();
+
+    // Per-triangle planes and, per pair, homographies.
+    const Eigen::Isometry3d& ctg = s.camera_T_ground;
+    const Eigen::Vector3d cam_pos = -(ctg.linear().transpose() * ctg.translation());
+    const Eigen::Matrix3d k = rig_.K();
+    const Eigen::Matrix3d kinv = k.inverse();
+    std::vector<std::array<float, 9>> hom(np * nt);
+    raster->reset(width_, height_, opt_.border_margin_px);
+    for (size_t i = 0; i < nt; ++i) {
+      TriangleGeometry& t = tris_[i];
+      t.drawn = false;
+      const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
+      const Eigen::Vector3d pqc = t.heights_to_plane * z;
+      // front-facing: the camera is above the triangle's plane
+      if (!(cam_pos.z() - (pqc.x() * cam_pos.x() + pqc.y() * cam_pos.y() + pqc.z()) > 1e-3)) continue;
+      if (!PlaneGeometry::cameraPlane(ctg, pqc, &t.m)) continue;
+      t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
+      TriangleRasterizer::Triangle rt;
+      bool ok = true;
+      for (int a = 0; a < 3; ++a) {
+        const Eigen::Vector2d xy = prob_.grid->position(t.vertex[a]);
+        const Eigen::Vector3d xc = ctg * Eigen::Vector3d(xy.x(), xy.y(), z[a]);
+        if (!(xc.z() > 0.1)) {
+          ok = false;
+          break;
+        }
+        rt.u[a] = rig_.fx * xc.x() / xc.z() + rig_.cx;
+        rt.v[a] = rig_.fy * xc.y() / xc.z() + rig_.cy;
+      }
+      if (!ok) continue;
+      rt.rho_a = t.m.x() / rig_.fx;
+      rt.rho_b = t.m.y() / rig_.fy;
+      rt.rho_c = t.m.z() - t.m.x() * rig_.cx / rig_.fx - t.m.y() * rig_.cy / rig_.fy;
+      rt.id = static_cast<int>(i);
+      t.drawn = true;
+      raster->draw(rt);
+      for (size_t j = 0; j < np; ++j) {
+        const Eigen::Matrix3d h = k * (pc[j].target_T_reference.linear() +
+                                       pc[j].target_T_reference.translation() * t.m.transpose()) *
+                                  kinv;
+        auto& hh = hom[j * nt + i];
+        for (int a = 0; a < 9; ++a) hh[static_cast<size_t>(a)] = static_cast<float>(h(a / 3, a % 3));
+      }
+    }
+
+    // Pixel loop: residuals, robust weights and the inverse compositional Jacobians.
+    const float c2 = static_cast<float>(opt_.robust_scale_grey * opt_.robust_scale_grey);
+    const bool robust = opt_.robust_scale_grey > 0.0;
+    auto rho = [&](double e) { return robust ? c2 * std::log1p(e * e / c2) : e * e; };
+    const double outside_cost = rho(opt_.outside_penalty_factor *
+                                    (robust ? opt_.robust_scale_grey : opt_.image_noise_std_grey));
+    const float dark = static_cast<float>(opt_.dark_level_grey);
+    const float sat = static_cast<float>(opt_.saturated_level_grey);
+    const float fx = static_cast<float>(rig_.fx), fy = static_cast<float>(rig_.fy);
+    const float cx = static_cast<float>(rig_.cx), cy = static_cast<float>(rig_.cy);
+    const bool motion = opt_.estimate_motion;
+    const cv::Mat& labels = raster->labels();
+    constexpr int kSampleStride = 7;  // every 7th residual feeds the median statistic
+    int sample_counter = 0;
+    for (int v = 0; v < height_; ++v) {
+      const int b = raster->rowBegin(v), e_col = raster->rowEnd(v);
+      if (b > e_col) continue;
+      const int* lab = labels.ptr<int>(v);
+      const float* i0row = ref_->image.ptr<float>(v);
+      const float* gurow = ref_->grad_u.ptr<float>(v);
+      const float* gvrow = ref_->grad_v.ptr<float>(v);
+      const float y = (static_cast<float>(v) - cy) / fy;
+      for (int u = b; u <= e_col; ++u) {
+        const int ti = lab[u];
+        if (ti < 0) continue;
+        const float i0 = i0row[u];
+        if (i0 <= dark || i0 >= sat) continue;
+        ev->tri_pixels[static_cast<size_t>(ti)]++;
+        const float x = (static_cast<float>(u) - cx) / fx;
+        const float gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
+        const Eigen::Vector3d cvec(gfu, gfv, -(gfu * x + gfv * y));
+        const Eigen::Vector3d xhat(x, y, 1.0);
+        for (size_t j = 0; j < np; ++j) {
+          const PairContext& p = pc[j];
+          const auto& h = hom[j * nt + static_cast<size_t>(ti)];
+          const cv::Mat& img = *p.image;
+          float uj, vj;
+          const float uf = static_cast<float>(u), vf = static_cast<float>(v);
+          if (p.horizontal_only) {
+            uj = h[0] * uf + h[1] * vf + h[2];
+            vj = vf;
+          } else {
+            const float wz = h[6] * uf + h[7] * vf + h[8];
+            if (!(wz > 1e-6f)) {
+              ev->pair[j].cost += outside_cost;
+              ev->pair[j].outside++;
+              continue;
+            }
+            uj = (h[0] * uf + h[1] * vf + h[2]) / wz;
+            vj = (h[3] * uf + h[4] * vf + h[5]) / wz;
+          }
+          if (!(uj >= 0.0f && vj >= 0.0f && uj < img.cols - 1 && vj < img.rows - 1)) {
+            ev->pair[j].cost += outside_cost;
+            ev->pair[j].outside++;
+            continue;
+          }
+          const float ij = bilinear(img, uj, vj);
+          if (ij <= dark || ij >= sat) continue;
+          const double e = i0 - (p.photometric.gain * ij + p.photometric.bias_grey);
+          const double w = robust ? 1.0 / (1.0 + e * e / c2) : 1.0;
+          PairAccumulator& pa = ev->pair[j];
+          pa.cost += rho(e);
+          pa.valid++;
+          if ((++sample_counter % kSampleStride) == 0) {
+            ev->abs_residuals.push_back(static_cast<float>(std::abs(e)));
+          }
+          const double sc = cvec.dot(p.t_prime);
+          const Eigen::Vector3d jd = sc * xhat;
+          const Eigen::Vector2d jp(i0, 1.0);
+          TriangleAccumulator& ta = ev->tri[j][static_cast<size_t>(ti)];
+          const Eigen::Vector3d wjd = w * jd;
+          ta.dd.noalias() += wjd * jd.transpose();
+          ta.de += wjd * e;
+          if (p.photo_index >= 0) {
+            ta.dp.noalias() += wjd * jp.transpose();
+            pa.pp.noalias() += (w * jp) * jp.transpose();
+            pa.pe += w * e * jp;
+          }
+          if (motion && !prob_.targets[j].rig_fixed) {
+            const double rho_u = tris_[static_cast<size_t>(ti)].m.dot(xhat);
+            Vector6d jm;
+            jm.head<3>() = rho_u * cvec;
+            jm.tail<3>() = xhat.cross(cvec);
+            ta.dm.noalias() += wjd * jm.transpose();
+            pa.mm.noalias() += (w * jm) * jm.transpose();
+            pa.me += w * e * jm;
+            if (p.photo_index >= 0) pa.mp.noalias() += (w * jm) * jp.transpose();
+          }
+        }
+      }
+    }
+    ev->data_cost = 0.0;
+    for (const auto& pa : ev->pair) ev->data_cost += data_scale_ * pa.cost;
+    const Eigen::VectorXd za = activeHeights(s);
+    ev->smoothness_cost = (smooth_ * za).squaredNorm();
+    ev->prior_cost = 0.0;
+    if (prob_.prior) {
+      for (size_t a = 0; a < active_.size(); ++a) {
+        const int v = active_[a];
+        const double info = prob_.prior->information[v];
+        if (info > 0.0) {
+          const double d = s.heights[v] - prob_.prior->mean[v];
+          ev->prior_cost += info * d * d;
+        }
+      }
+    }
+  }
+
+  struct Step {
+    Eigen::VectorXd dtheta;  ///< basis coefficients (compact controls)
+    Eigen::VectorXd dglobal; ///< [motion (6)][photometric (2 per estimated pair)]
+    bool ok = false;
+  };
+
+  /// Builds and solves the normal equations of the Gauss-Newton step at the evaluated state.
+  Step solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report) {
+    const std::vector<PairContext> pc = pairs(s);
+    const int na = activeCount();
+    const int ng = global_count_;
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(tris_.size() * 9 * 2 + static_cast<size_t>(na));
+    Eigen::VectorXd gz = Eigen::VectorXd::Zero(na);
+    Eigen::MatrixXd hzg = Eigen::MatrixXd::Zero(na, ng);
+    Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
+    Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
+    Eigen::VectorXd data_diag = Eigen::VectorXd::Zero(na);
+    const double ks = data_scale_;
+    for (size_t j = 0; j < pc.size(); ++j) {
+      const PairContext& p = pc[j];
+      const bool rig = prob_.targets[j].rig_fixed;
+      const int pi = p.photo_index;
+      const PairAccumulator& pa = ev.pair[j];
+      if (pi >= 0) {
+        hgg.block<2, 2>(pi, pi) += ks * pa.pp;
+        gg.segment<2>(pi) += ks * pa.pe;
+      }
+      if (opt_.estimate_motion && !rig) {
+        hgg.topLeftCorner<6, 6>() += ks * pa.mm;
+        gg.head<6>() += ks * pa.me;
+        if (pi >= 0) {
+          hgg.block<6, 2>(0, pi) += ks * pa.mp;
+          hgg.block<2, 6>(pi, 0) += ks * pa.mp.transpose();
+        }
+      }
+      for (size_t i = 0; i < tris_.size(); ++i) {
+        const TriangleGeometry& t = tris_[i];
+        if (!t.drawn || ev.tri_pixels[i] == 0) continue;
+        const TriangleAccumulator& ta = ev.tri[j][i];
+        const double scale = PlaneGeometry::deltaScale(t.m, p.t_prime);
+        const Eigen::Matrix3d a = scale * t.dm_dz;  // delta = a * dz
+        if (prob_.estimate_heights) {
+          const Eigen::Matrix3d hzz = ks * a.transpose() * ta.dd * a;
+          const Eigen::Vector3d g3 = ks * a.transpose() * ta.de;
+          for (int r = 0; r < 3; ++r) {
+            gz[t.local[r]] += g3[r];
+            data_diag[t.local[r]] += hzz(r, r);
+            for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[r], t.local[c], hzz(r, c));
+          }
+          if (pi >= 0) {
+            const Matrix32d hzp = ks * a.transpose() * ta.dp;
+            for (int r = 0; r < 3; ++r) hzg.block<1, 2>(t.local[r], pi) += hzp.row(r);
+          }
+        }
+        if (opt_.estimate_motion) {
+          Matrix36d hzm;
+          if (rig) {
+            const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(t.m);
+            hzm = ks * a.transpose() * ta.dd * bm;
+            hgg.topLeftCorner<6, 6>() += ks * bm.transpose() * ta.dd * bm;
+            gg.head<6>() += ks * bm.transpose() * ta.de;
+            if (pi >= 0) {
+              const Matrix62d hmp = ks * bm.transpose() * ta.dp;
+              hgg.block<6, 2>(0, pi) += hmp;
+              hgg.block<2, 6>(pi, 0) += hmp.transpose();
+            }
+          } else {
+            hzm = ks * a.transpose() * ta.dm;
+          }
+          if (prob_.estimate_heights) {
+            for (int r = 0; r < 3; ++r) hzg.block<1, 6>(t.local[r], 0) += hzm.row(r);
+          }
+        }
+      }
+    }
+    report->vertex_information = Eigen::VectorXd::Zero(prob_.grid->vertexCount());
+    for (int a = 0; a < na; ++a) report->vertex_information[active_[static_cast<size_t>(a)]] = data_diag[a];
+
+    Step step;
+    step.dglobal = Eigen::VectorXd::Zero(ng);
+    if (!prob_.estimate_heights || control_count_ == 0) {
+      step.dtheta = Eigen::VectorXd::Zero(control_count_);
+      if (ng == 0) return step;
+      const Eigen::LDLT<Eigen::MatrixXd> ldlt(hgg);
+      if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return step;
+      step.dglobal = ldlt.solve(-gg);
+      step.ok = step.dglobal.allFinite();
+      if (opt_.estimate_motion) report->motion_information = hgg.topLeftCorner<6, 6>();
+      return step;
+    }
+    // Smoothness and prior on the fine active heights.
+    const Eigen::VectorXd za = activeHeights(s);
+    gz += smooth_t_smooth_ * za;
+    SpMat hzz(na, na);
+    hzz.setFromTriplets(trip.begin(), trip.end());
+    hzz += smooth_t_smooth_;
+    if (prob_.prior) {
+      std::vector<Eigen::Triplet<double>> pt;
+      for (int a = 0; a < na; ++a) {
+        const int v = active_[static_cast<size_t>(a)];
+        const double info = prob_.prior->information[v];
+        if (info > 0.0) {
+          pt.emplace_back(a, a, info);
+          gz[a] += info * (s.heights[v] - prob_.prior->mean[v]);
+        }
+      }
+      SpMat hp(na, na);
+      hp.setFromTriplets(pt.begin(), pt.end());
+      hzz += hp;
+    }
+    // Project onto the basis.
+    SpMat hcc;
+    Eigen::VectorXd gc;
+    Eigen::MatrixXd hcg;
+    if (identity_basis_) {
+      hcc = hzz;
+      gc = gz;
+      hcg = hzg;
+    } else {
+      hcc = (basis_t_ * hzz * basis_).pruned();
+      gc = basis_t_ * gz;
+      hcg = basis_t_ * hzg;
+    }
+    for (int c = 0; c < control_count_; ++c) hcc.coeffRef(c, c) += mu_[c];
+    hcc.makeCompressed();
+    Eigen::SimplicialLDLT<SpMat> chol;
+    chol.compute(hcc);
+    if (chol.info() != Eigen::Success) {
+      report->degenerate = true;
+      return step;
+    }
+    if (ng > 0) {
+      const Eigen::MatrixXd hinv_hcg = chol.solve(hcg);
+      const Eigen::VectorXd hinv_gc = chol.solve(gc);
+      const Eigen::MatrixXd schur = hgg - hcg.transpose() * hinv_hcg;
+      const Eigen::LDLT<Eigen::MatrixXd> ldlt(schur);
+      if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
+        report->degenerate = true;
+        return step;
+      }
+      step.dglobal = ldlt.solve(-gg + hcg.transpose() * hinv_gc);
+      step.dtheta = -(hinv_gc + hinv_hcg * step.dglobal);
+      if (opt_.estimate_motion) {
+        // Motion information with the heights marginalized (data + regularizers).
+        report->motion_information = schur.topLeftCorner<6, 6>();
+      }
+    } else {
+      step.dtheta = chol.solve(-gc);
+    }
+    step.ok = step.dtheta.allFinite() && step.dglobal.allFinite();
+    if (!step.ok) report->degenerate = true;
+    return step;
+  }
+
+  /// state + alpha * step; returns the largest fine height change [m].
+  double apply(const Step& st, double alpha, const SurfaceState& from, SurfaceState* to) const {
+    *to = from;
+    double max_dz = 0.0;
+    if (prob_.estimate_heights && st.dtheta.size() > 0) {
+      if (identity_basis_) {
+        for (size_t a = 0; a < active_.size(); ++a) {
+          const double d = alpha * st.dtheta[static_cast<Eigen::Index>(a)];
+          to->heights[active_[a]] += d;
+          max_dz = std::max(max_dz, std::abs(d));
+        }
+      } else {
+        Eigen::VectorXd full = Eigen::VectorXd::Zero(prob_.basis->cols());
+        for (int c = 0; c < control_count_; ++c) full[control_[static_cast<size_t>(c)]] = alpha * st.dtheta[c];
+        const Eigen::VectorXd dz = (*prob_.basis) * full;
+        for (Eigen::Index v = 0; v < dz.size(); ++v) {
+          if (std::isfinite(to->heights[v]) && dz[v] != 0.0) {
+            to->heights[v] += dz[v];
+            max_dz = std::max(max_dz, std::abs(dz[v]));
+          }
+        }
+      }
+    }
+    if (opt_.estimate_motion) {
+      to->camera_T_ground = Se3::exp(alpha * st.dglobal.head<6>()) * from.camera_T_ground;
+    }
+    for (size_t j = 0; j < prob_.targets.size(); ++j) {
+      const int pi = photo_index_[j];
+      if (pi < 0) continue;
+      to->photometric[j] = from.photometric[j].composedWithInverse(alpha * st.dglobal[pi],
+                                                                   alpha * st.dglobal[pi + 1]);
+    }
+    return max_dz;
+  }
+
+  void fillPixels(const Evaluation& ev, AlignmentReport* report) const {
+    report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+    for (size_t i = 0; i < tris_.size(); ++i) {
+      for (int a = 0; a < 3; ++a) report->vertex_pixels[tris_[i].vertex[static_cast<size_t>(a)]] += ev.tri_pixels[i];
+    }
+  }
+
+ private:
+  Eigen::VectorXd activeHeights(const SurfaceState& s) const {
+    Eigen::VectorXd za(activeCount());
+    for (size_t a = 0; a < active_.size(); ++a) za[static_cast<Eigen::Index>(a)] = s.heights[active_[a]];
+    return za;
+  }
+
+  void selectWorkingSet(const GroundGrid& g, const SurfaceState& s) {
+    const int nv = g.vertexCount();
+    if (s.heights.size() != nv) throw std::invalid_argument("SurfaceAligner: heights do not match the grid");
+    // vertex eligibility: finite height, enabled, within the depth / lateral range
+    std::vector<uint8_t> ok(static_cast<size_t>(nv), 0);
+    std::vector<Eigen::Vector2d> pix(static_cast<size_t>(nv));
+    for (int v = 0; v < nv; ++v) {
+      if (!std::isfinite(s.heights[v])) continue;
+      if (!prob_.vertex_mask.empty() && !prob_.vertex_mask[static_cast<size_t>(v)]) continue;
+      const Eigen::Vector2d xy = g.position(v);
+      const Eigen::Vector3d xc = s.camera_T_ground * Eigen::Vector3d(xy.x(), xy.y(), s.heights[v]);
+      if (xc.z() < opt_.min_depth_m || xc.z() > opt_.max_depth_m || std::abs(xc.x()) > opt_.max_lateral_m) continue;
+      ok[static_cast<size_t>(v)] = 1;
+      pix[static_cast<size_t>(v)] = {rig_.fx * xc.x() / xc.z() + rig_.cx, rig_.fy * xc.y() / xc.z() + rig_.cy};
+    }
+    std::vector<int> local(static_cast<size_t>(nv), -1);
+    for (int t = 0; t < g.triangleCount(); ++t) {
+      const auto tv = g.triangle(t);
+      if (!ok[static_cast<size_t>(tv[0])] || !ok[static_cast<size_t>(tv[1])] || !ok[static_cast<size_t>(tv[2])]) continue;
+      double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
+      for (int a : tv) {
+        const auto& p = pix[static_cast<size_t>(a)];
+        umin = std::min(umin, p.x());
+        umax = std::max(umax, p.x());
+        vmin = std::min(vmin, p.y());
+        vmax = std::max(vmax, p.y());
+      }
+      if (umax < 0 || vmax < 0 || umin > width_ - 1 || vmin > height_ - 1) continue;
+      TriangleGeometry tg;
+      tg.vertex = tv;
+      std::array<Eigen::Vector2d, 3> xy;
+      for (int a = 0; a < 3; ++a) {
+        const int v = tv[static_cast<size_t>(a)];
+        xy[static_cast<size_t>(a)] = g.position(v);
+        if (local[static_cast<size_t>(v)] < 0) {
+          local[static_cast<size_t>(v)] = static_cast<int>(active_.size());
+          active_.push_back(v);
+        }
+        tg.local[static_cast<size_t>(a)] = local[static_cast<size_t>(v)];
+      }
+      tg.heights_to_plane = PlaneGeometry::heightsToPlane(xy);
+      tris_.push_back(tg);
+    }
+    local_ = std::move(local);
+  }
+
+  void buildBasis() {
+    const int na = activeCount();
+    if (prob_.basis == nullptr) {
+      identity_basis_ = true;
+      control_count_ = prob_.estimate_heights ? na : 0;
+      mu_.resize(control_count_);
+      for (int a = 0; a < control_count_; ++a) {
+        mu_[a] = prob_.update_weight.size() > 0 ? prob_.update_weight[active_[static_cast<size_t>(a)]] : 0.0;
+      }
+      return;
+    }
+    identity_basis_ = false;
+    const auto& b = *prob_.basis;
+    if (b.rows() != prob_.grid->vertexCount()) throw std::invalid_argument("SurfaceAligner: basis rows != grid vertices");
+    std::vector<int> col_local(static_cast<size_t>(b.cols()), -1);
+    std::vector<Eigen::Triplet<double>> trip;
+    for (int a = 0; a < na; ++a) {
+      for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(b, active_[static_cast<size_t>(a)]); it; ++it) {
+        if (it.value() == 0.0) continue;
+        int& cl = col_local[static_cast<size_t>(it.col())];
+        if (cl < 0) {
+          cl = static_cast<int>(control_.size());
+          control_.push_back(static_cast<int>(it.col()));
+        }
+        trip.emplace_back(a, cl, it.value());
+      }
+    }
+    control_count_ = prob_.estimate_heights ? static_cast<int>(control_.size()) : 0;
+    basis_.resize(na, static_cast<int>(control_.size()));
+    basis_.setFromTriplets(trip.begin(), trip.end());
+    basis_t_ = basis_.transpose();
+    mu_.resize(static_cast<Eigen::Index>(control_.size()));
+    for (size_t c = 0; c < control_.size(); ++c) {
+      mu_[static_cast<Eigen::Index>(c)] = prob_.update_weight.size() > 0 ? prob_.update_weight[control_[c]] : 0.0;
+    }
+  }
+
+  void buildSmoothness(const GroundGrid& g) {
+    const double s = g.resolution_m;
+    const double w_axis = std::sqrt(opt_.smoothness_weight) / s;
+    const double w_diag = std::sqrt(opt_.smoothness_weight) / (2.0 * s);
+    std::vector<Eigen::Triplet<double>> trip;
+    int row = 0;
+    auto add = [&](int r, int c, int dr, int dc, double w) {
+      if (!g.contains(r - dr, c - dc) || !g.contains(r + dr, c + dc)) return;
+      const int a = local_[static_cast<size_t>(g.index(r - dr, c - dc))];
+      const int b = local_[static_cast<size_t>(g.index(r, c))];
+      const int d = local_[static_cast<size_t>(g.index(r + dr, c + dc))];
+      if (a < 0 || b < 0 || d < 0) return;
+      trip.emplace_back(row, a, w);
+      trip.emplace_back(row, b, -2.0 * w);
+      trip.emplace_back(row, d, w);
+      ++row;
+    };
+    if (opt_.smoothness_weight > 0.0) {
+      for (int v : active_) {
+        const int r = g.rowOf(v), c = g.colOf(v);
+        add(r, c, 0, 1, w_axis);
+        add(r, c, 1, 0, w_axis);
+        add(r, c, 1, 1, w_diag);
+      }
+    }
+    smooth_.resize(row, activeCount());
+    smooth_.setFromTriplets(trip.begin(), trip.end());
+    smooth_t_smooth_ = (smooth_.transpose() * smooth_).pruned();
+  }
+
+  const SurfaceAlignerOptions& opt_;
+  const AlignmentProblem& prob_;
+  StereoRig rig_;
+  const ImagePyramid::Level* ref_ = nullptr;
+  int width_ = 0, height_ = 0;
+  double data_scale_ = 1.0;
+  std::vector<TriangleGeometry> tris_;
+  std::vector<int> active_;   ///< compact index -> fine vertex
+  std::vector<int> local_;    ///< fine vertex -> compact index or -1
+  bool identity_basis_ = true;
+  std::vector<int> control_;  ///< compact control -> basis column
+  int control_count_ = 0;
+  SpMat basis_, basis_t_;     ///< active rows x compact controls
+  Eigen::VectorXd mu_;
+  SpMat smooth_, smooth_t_smooth_;
+  int global_count_ = 0;
+  std::vector<int> photo_index_;
+};
+
+double median(std::vector<float> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+void checkProblem(const AlignmentProblem& p, const SurfaceState& s) {
+  if (!p.reference || !p.rig || !p.grid) throw std::invalid_argument("SurfaceAligner: reference, rig and grid are required");
+  if (p.level < 0 || p.level >= p.reference->levels()) throw std::invalid_argument("SurfaceAligner: no such pyramid level");
+  if (s.photometric.size() != p.targets.size()) {
+    throw std::invalid_argument("SurfaceAligner: one PhotometricParams per target is required");
+  }
+  for (const auto& t : p.targets) {
+    if (!t.pyramid || t.pyramid->levels() <= p.level) throw std::invalid_argument("SurfaceAligner: target pyramid missing or too shallow");
+  }
+  if (p.prior && (p.prior->mean.size() != p.grid->vertexCount() || p.prior->information.size() != p.grid->vertexCount())) {
+    throw std::invalid_argument("SurfaceAligner: prior does not match the grid");
+  }
+  if (!p.vertex_mask.empty() && static_cast<int>(p.vertex_mask.size()) != p.grid->vertexCount()) {
+    throw std::invalid_argument("SurfaceAligner: vertex mask does not match the grid");
+  }
+}
+
+}  // namespace
+
+SurfaceAligner::SurfaceAligner(const SurfaceAlignerOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.isValid(&why)) throw std::invalid_argument("SurfaceAlignerOptions: " + why);
+}
+
+AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceState& state) const {
+  checkProblem(problem, state);
+  AlignmentReport report;
+  LevelSolver solver(options_, problem, state);
+  report.working_triangles = solver.workingTriangles();
+  report.active_vertices = solver.activeCount();
+  if (solver.empty()) {
+    report.vertex_information = Eigen::VectorXd::Zero(problem.grid->vertexCount());
+    report.vertex_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
+    return report;
+  }
+  TriangleRasterizer raster;
+  Evaluation ev, trial_ev;
+  solver.evaluate(state, &ev, &raster);
+  report.initial_cost = ev.total();
+  SurfaceState trial;
+  for (int it = 0; it < options_.max_iterations; ++it) {
+    report.iterations = it + 1;
+    const auto step = solver.solve(state, ev, &report);
+    if (!step.ok) break;
+    double alpha = 1.0;
+    bool accepted = false;
+    double max_dz = 0.0;
+    for (int h = 0; h <= options_.max_step_halvings; ++h, alpha *= 0.5) {
+      max_dz = solver.apply(step, alpha, state, &trial);
+      solver.evaluate(trial, &trial_ev, &raster);
+      if (trial_ev.total() <= ev.total() * (1.0 + 1e-9)) {
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) break;
+    state = trial;
+    std::swap(ev, trial_ev);
+    report.accepted_steps++;
+    bool small = max_dz < options_.converged_height_step_m;
+    if (options_.estimate_motion) {
+      small = small && alpha * step.dglobal.head<3>().norm() < options_.converged_translation_m &&
+              alpha * step.dglobal.segment<3>(3).norm() < options_.converged_rotation_rad;
+    }
+    if (small) {
+      report.converged = true;
+      break;
+    }
+  }
+  // ev holds the evaluation at the final state; vertex_information comes from the last
+  // linearization (the state before the last accepted step), which differs only to second order.
+  solver.fillPixels(ev, &report);
+  report.final_cost = ev.total();
+  report.data_cost = ev.data_cost;
+  report.smoothness_cost = ev.smoothness_cost;
+  report.prior_cost = ev.prior_cost;
+  report.valid_pixels = 0;
+  report.outside_pixels = 0;
+  for (const auto& pa : ev.pair) {
+    report.valid_pixels += pa.valid;
+    report.outside_pixels += pa.outside;
+  }
+  report.median_abs_residual_grey = median(ev.abs_residuals);
+  return report;
+}
+
+cv::Mat SurfaceAligner::renderInverseDepth(const AlignmentProblem& problem, const SurfaceState& state,
+                                           cv::Mat* labels) const {
+  checkProblem(problem, state);
+  SurfaceAlignerOptions o = options_;
+  o.estimate_motion = false;
+  TriangleRasterizer raster;
+  Evaluation ev;
+  AlignmentProblem p = problem;
+  p.targets.clear();
+  SurfaceState s = state;
+  s.photometric.clear();
+  LevelSolver bare(o, p, s);
+  bare.evaluate(s, &ev, &raster);
+  if (labels) *labels = raster.labels().clone();
+  return raster.inverseDepth().clone();
+}
+
+}  // namespace stereo_ground_dem
