@@ -1,0 +1,93 @@
+#pragma once
+/// \file StereoEstimator.hpp
+/// Stereo mode (METHOD.md section 5, the paper's section 2): the DEM of the ground in front of a
+/// rectified stereo pair, from one pair. Start-up of the ground frame: a plane from the nominal
+/// camera height and pitch, refined by a direct fit of one plane on near ground; the fitted plane
+/// defines the ground frame G (z up along its normal, x along the optical axis projected on it,
+/// origin below the camera). Then coarse-to-fine meshes (hierarchical meshing) with an image pyramid.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/GroundGrid.hpp"
+#include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/PhotometricParams.hpp"
+#include "stereo_ground_dem/StereoRig.hpp"
+#include "stereo_ground_dem/SurfaceAligner.hpp"
+
+namespace stereo_ground_dem {
+
+struct StereoEstimatorOptions {
+  double grid_resolution_m = 0.5;       ///< finest mesh spacing s [m]
+  int mesh_levels = 4;                  ///< meshes 2^(L-1) s, ..., 2 s, s, each with pyramid level l
+  double min_range_m = 4.0;             ///< working range: camera depth of vertices [m]
+  double max_range_m = 40.0;            ///< [m]
+  double max_lateral_m = 20.0;          ///< |x| in the camera frame [m]
+  double nominal_height_m = 1.65;       ///< camera height above the ground, start-up guess [m]
+  double nominal_pitch_down_rad = 0.0;  ///< start-up guess, positive looking down [rad]
+  double nominal_roll_rad = 0.0;        ///< start-up guess [rad]
+  double plane_fit_min_range_m = 5.0;   ///< the start-up plane is fitted on ground this near [m]
+  double plane_fit_max_range_m = 15.0;  ///< [m]
+  int plane_fit_coarsest_level = 3;     ///< pyramid levels used by the plane fit, coarse to fine
+  int plane_fit_finest_level = 1;
+  /// Update constraint mu_v = update_weight * (1 + (depth_v / update_reference_depth_m)^2) [1/m^2].
+  double update_weight = 1e3;
+  double update_reference_depth_m = 10.0;
+  bool use_hierarchy = true;            ///< false: the finest mesh only, at pyramid levels L-1..0
+  int iterations_per_level = 8;
+  SurfaceAlignerOptions aligner;        ///< its depth range is overridden by the fields above
+
+  bool isValid(std::string* why) const;
+};
+
+struct StereoResult {
+  bool ok = false;
+  std::string message;                 ///< why not ok
+  GroundGrid grid;                     ///< the finest mesh, in the ground frame
+  Eigen::VectorXd heights;             ///< per vertex [m]; NaN = not observed
+  Eigen::VectorXd information;         ///< per vertex, data term [1/m^2]
+  Eigen::VectorXi pixels;              ///< per vertex, pixels in its triangles at level 0
+  Eigen::Isometry3d ground_T_camera = Eigen::Isometry3d::Identity();  ///< left camera in G
+  PhotometricParams photometric;       ///< left = gain * right + bias
+  std::vector<AlignmentReport> reports;  ///< plane fit levels, then mesh levels
+  double median_abs_residual_grey = 0.0;
+};
+
+class StereoEstimator {
+ public:
+  StereoEstimator(const StereoRig& rig, const StereoEstimatorOptions& options);
+
+  /// Full stereo mode on one pair (any accepted image type, see ImagePyramid).
+  StereoResult estimate(const cv::Mat& left, const cv::Mat& right) const;
+  StereoResult estimate(const ImagePyramid& left, const ImagePyramid& right) const;
+
+  /// Only the start-up plane: returns ground_T_camera whose ground plane is the fitted plane, and
+  /// the gain/bias estimate.
+  bool fitGroundPlane(const ImagePyramid& left, const ImagePyramid& right, Eigen::Isometry3d* ground_T_camera,
+                      PhotometricParams* photometric, std::vector<AlignmentReport>* reports,
+                      std::string* message) const;
+
+  /// The disparity [px] the surface implies at every left pixel (0 where no surface), level 0.
+  cv::Mat impliedDisparity(const StereoResult& result, const ImagePyramid& left) const;
+
+  /// camera_T_ground of a camera at height h above the origin, looking along +x, pitched down.
+  static Eigen::Isometry3d nominalCameraPose(double height_m, double pitch_down_rad, double roll_rad);
+
+  /// Gain/bias guess from the grey-level statistics of the rows that see the working range.
+  PhotometricParams initialPhotometric(const ImagePyramid& left, const ImagePyramid& right,
+                                       const Eigen::Isometry3d& camera_T_ground) const;
+
+  const StereoRig& rig() const { return rig_; }
+  const StereoEstimatorOptions& options() const { return options_; }
+
+  /// The update-constraint weights of every vertex of `grid` as seen from camera_T_ground.
+  Eigen::VectorXd updateWeights(const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                const Eigen::Isometry3d& camera_T_ground) const;
+
+ private:
+  StereoRig rig_;
+  StereoEstimatorOptions options_;
+};
+
+}  // namespace stereo_ground_dem

@@ -1,0 +1,298 @@
+#include "stereo_ground_dem/StereoEstimator.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+bool StereoEstimatorOptions::isValid(std::string* why) const {
+  auto bad = [why](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (!(grid_resolution_m > 0.0)) return bad("grid_resolution_m must be > 0");
+  if (mesh_levels < 1 || mesh_levels > 6) return bad("mesh_levels must be in 1..6");
+  if (!(min_range_m > 0.0) || !(max_range_m > min_range_m)) return bad("need 0 < min_range_m < max_range_m");
+  if (!(max_lateral_m > 0.0)) return bad("max_lateral_m must be > 0");
+  if (!(nominal_height_m > 0.0)) return bad("nominal_height_m must be > 0");
+  if (!(std::abs(nominal_pitch_down_rad) < 1.2)) return bad("nominal_pitch_down_rad must be within +-1.2 rad");
+  if (!(plane_fit_min_range_m > 0.0) || !(plane_fit_max_range_m > plane_fit_min_range_m)) {
+    return bad("need 0 < plane_fit_min_range_m < plane_fit_max_range_m");
+  }
+  if (plane_fit_finest_level < 0 || plane_fit_coarsest_level < plane_fit_finest_level) {
+    return bad("need 0 <= plane_fit_finest_level <= plane_fit_coarsest_level");
+  }
+  if (!(update_weight >= 0.0) || !(update_reference_depth_m > 0.0)) {
+    return bad("update_weight must be >= 0 and update_reference_depth_m > 0");
+  }
+  if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
+  std::string w;
+  if (!aligner.isValid(&w)) return bad("aligner: " + w);
+  return true;
+}
+
+StereoEstimator::StereoEstimator(const StereoRig& rig, const StereoEstimatorOptions& options)
+    : rig_(rig), options_(options) {
+  std::string why;
+  if (!rig_.isValid(&why)) throw std::invalid_argument("StereoEstimator: rig: " + why);
+  if (!options_.isValid(&why)) throw std::invalid_argument("StereoEstimatorOptions: " + why);
+}
+
+Eigen::Isometry3d StereoEstimator::nominalCameraPose(double height_m, double pitch_down_rad, double roll_rad) {
+  Eigen::Matrix3d optical_to_ground;
+  optical_to_ground << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  Eigen::Isometry3d ground_T_camera = Eigen::Isometry3d::Identity();
+  ground_T_camera.linear() = (Eigen::AngleAxisd(pitch_down_rad, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix() *
+                             optical_to_ground;
+  ground_T_camera.translation() = Eigen::Vector3d(0.0, 0.0, height_m);
+  return ground_T_camera.inverse();
+}
+
+Eigen::VectorXd StereoEstimator::updateWeights(const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                               const Eigen::Isometry3d& camera_T_ground) const {
+  Eigen::VectorXd mu(grid.vertexCount());
+  for (int v = 0; v < grid.vertexCount(); ++v) {
+    const Eigen::Vector2d xy = grid.position(v);
+    const double h = std::isfinite(heights[v]) ? heights[v] : 0.0;
+    const double depth = std::max(0.0, (camera_T_ground * Eigen::Vector3d(xy.x(), xy.y(), h)).z());
+    const double r = depth / options_.update_reference_depth_m;
+    mu[v] = options_.update_weight * (1.0 + r * r);
+  }
+  return mu;
+}
+
+PhotometricParams StereoEstimator::initialPhotometric(const ImagePyramid& left, const ImagePyramid& right,
+                                                      const Eigen::Isometry3d& camera_T_ground) const {
+  // Rows that see the ground between the near and far range, from the nominal geometry.
+  auto rowOf = [&](double range) {
+    const Eigen::Vector3d xc = camera_T_ground * Eigen::Vector3d(range, 0.0, 0.0);
+    return rig_.fy * xc.y() / std::max(xc.z(), 1e-3) + rig_.cy;
+  };
+  const cv::Mat& l = left.level(0).image;
+  const cv::Mat& r = right.level(0).image;
+  const int v0 = std::clamp(static_cast<int>(rowOf(options_.max_range_m)), 0, l.rows - 1);
+  const int v1 = std::clamp(static_cast<int>(rowOf(options_.min_range_m)), v0 + 1, l.rows);
+  cv::Scalar ml, sl, mr, sr;
+  cv::meanStdDev(l.rowRange(v0, v1), ml, sl);
+  cv::meanStdDev(r.rowRange(v0, v1), mr, sr);
+  PhotometricParams p;
+  if (sr[0] > 1.0 && sl[0] > 1.0) {
+    p.gain = std::clamp(sl[0] / sr[0], 0.25, 4.0);
+    p.bias_grey = ml[0] - p.gain * mr[0];
+  }
+  return p;
+}
+
+bool StereoEstimator::fitGroundPlane(const ImagePyramid& left, const ImagePyramid& right,
+                                     Eigen::Isometry3d* ground_T_camera, PhotometricParams* photometric,
+                                     std::vector<AlignmentReport>* reports, std::string* message) const {
+  const StereoEstimatorOptions& o = options_;
+  const Eigen::Isometry3d camera_T_ground0 =
+      nominalCameraPose(o.nominal_height_m, o.nominal_pitch_down_rad, o.nominal_roll_rad);
+  const double res = std::max(1.0, o.grid_resolution_m);
+  const GroundGrid grid = GroundGrid::covering(0.0, o.plane_fit_max_range_m / std::cos(std::min(0.5, std::abs(o.nominal_pitch_down_rad))) + 2.0 * res,
+                                               -o.max_lateral_m, o.max_lateral_m, res);
+  // heights = p x + q y + c: the basis [x y 1]
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int v = 0; v < grid.vertexCount(); ++v) {
+    const Eigen::Vector2d xy = grid.position(v);
+    trip.emplace_back(v, 0, xy.x());
+    trip.emplace_back(v, 1, xy.y());
+    trip.emplace_back(v, 2, 1.0);
+  }
+  Eigen::SparseMatrix<double, Eigen::RowMajor> basis(grid.vertexCount(), 3);
+  basis.setFromTriplets(trip.begin(), trip.end());
+
+  SurfaceAlignerOptions ao = o.aligner;
+  ao.min_depth_m = o.plane_fit_min_range_m;
+  ao.max_depth_m = o.plane_fit_max_range_m;
+  ao.max_lateral_m = o.max_lateral_m;
+  ao.estimate_motion = false;
+  ao.smoothness_weight = 0.0;  // a plane has no curvature
+  ao.max_iterations = std::max(ao.max_iterations, 10);
+  const SurfaceAligner aligner(ao);
+
+  SurfaceState state;
+  state.camera_T_ground = camera_T_ground0;
+  state.heights = Eigen::VectorXd::Zero(grid.vertexCount());
+  state.photometric = {initialPhotometric(left, right, camera_T_ground0)};
+  AlignerTarget target;
+  target.pyramid = &right;
+  target.rig_fixed = true;
+  target.target_T_reference = Eigen::Translation3d(-rig_.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
+  AlignmentProblem prob;
+  prob.reference = &left;
+  prob.rig = &rig_;
+  prob.grid = &grid;
+  prob.targets = {target};
+  prob.basis = &basis;
+  prob.update_weight = Eigen::Vector3d(1e2, 1e2, 1e0);  // mild damping of (p, q, c)
+  const int coarsest = std::min(o.plane_fit_coarsest_level, left.levels() - 1);
+  for (int l = coarsest; l >= std::min(o.plane_fit_finest_level, coarsest); --l) {
+    prob.level = l;
+    const AlignmentReport rep = aligner.align(prob, state);
+    if (reports) reports->push_back(rep);
+    if (rep.valid_pixels < 200) {
+      if (message) {
+        std::ostringstream os;
+        os << "start-up plane fit: only " << rep.valid_pixels << " usable ground pixels at pyramid level " << l
+           << " (is the camera looking at the ground? check nominal_height_m/nominal_pitch_down_rad)";
+        *message = os.str();
+      }
+      return false;
+    }
+  }
+  // The fitted plane z = p x + q y + c in the start-up frame (heights stay in the basis' span).
+  Eigen::MatrixXd a(grid.vertexCount(), 3);
+  for (int v = 0; v < grid.vertexCount(); ++v) a.row(v) << grid.position(v).x(), grid.position(v).y(), 1.0;
+  const Eigen::Vector3d pqc = a.colPivHouseholderQr().solve(state.heights);
+  Eigen::Vector3d n(-pqc.x(), -pqc.y(), 1.0);
+  const double norm = n.norm();
+  n /= norm;
+  const double offset = pqc.z() / norm;  // n . X = offset on the plane
+  const Eigen::Isometry3d g0_T_c = camera_T_ground0.inverse();
+  const Eigen::Vector3d c = g0_T_c.translation();
+  const double height = n.dot(c) - offset;
+  const double tilt = std::acos(std::min(1.0, n.z()));
+  if (!(height > 0.1 && height < 20.0) || !(tilt < 0.5) || !pqc.allFinite()) {
+    if (message) {
+      std::ostringstream os;
+      os << "start-up plane fit diverged (camera height " << height << " m, tilt " << tilt
+         << " rad from the nominal plane)";
+      *message = os.str();
+    }
+    return false;
+  }
+  const Eigen::Vector3d foot = c - height * n;
+  Eigen::Vector3d xaxis = g0_T_c.linear().col(2);
+  xaxis -= n * n.dot(xaxis);
+  xaxis.normalize();
+  const Eigen::Vector3d yaxis = n.cross(xaxis);
+  Eigen::Isometry3d g_T_g0 = Eigen::Isometry3d::Identity();
+  g_T_g0.linear().row(0) = xaxis.transpose();
+  g_T_g0.linear().row(1) = yaxis.transpose();
+  g_T_g0.linear().row(2) = n.transpose();
+  g_T_g0.translation() = -(g_T_g0.linear() * foot);
+  *ground_T_camera = g_T_g0 * g0_T_c;
+  *photometric = state.photometric[0];
+  return true;
+}
+
+StereoResult StereoEstimator::estimate(const cv::Mat& left, const cv::Mat& right) const {
+  if (left.size() != right.size()) {
+    StereoResult r;
+    std::ostringstream os;
+    os << "left and right images differ in size (" << left.cols << "x" << left.rows << " vs " << right.cols << "x"
+       << right.rows << ")";
+    r.message = os.str();
+    return r;
+  }
+  const int levels = std::max(options_.mesh_levels, options_.plane_fit_coarsest_level + 1);
+  return estimate(ImagePyramid(left, levels), ImagePyramid(right, levels));
+}
+
+StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyramid& right) const {
+  const StereoEstimatorOptions& o = options_;
+  StereoResult res;
+  if (left.width() != right.width() || left.height() != right.height()) {
+    res.message = "left and right images differ in size";
+    return res;
+  }
+  if ((rig_.width > 0 && rig_.width != left.width()) || (rig_.height > 0 && rig_.height != left.height())) {
+    std::ostringstream os;
+    os << "image size " << left.width() << "x" << left.height() << " does not match the calibration ("
+       << rig_.width << "x" << rig_.height << ")";
+    res.message = os.str();
+    return res;
+  }
+  if (left.levels() < o.mesh_levels || right.levels() < o.mesh_levels) {
+    res.message = "image pyramids have fewer levels than mesh_levels";
+    return res;
+  }
+  if (!fitGroundPlane(left, right, &res.ground_T_camera, &res.photometric, &res.reports, &res.message)) return res;
+
+  const int top = o.mesh_levels - 1;
+  const int align = 1 << top;
+  res.grid = GroundGrid::covering(0.0, o.max_range_m + 2.0 * o.grid_resolution_m, -o.max_lateral_m - 1.0,
+                                  o.max_lateral_m + 1.0, o.grid_resolution_m, align);
+  SurfaceState state;
+  state.camera_T_ground = res.ground_T_camera.inverse();
+  state.heights = Eigen::VectorXd::Zero(res.grid.vertexCount());
+  state.photometric = {res.photometric};
+
+  SurfaceAlignerOptions ao = o.aligner;
+  ao.min_depth_m = o.min_range_m;
+  ao.max_depth_m = o.max_range_m;
+  ao.max_lateral_m = o.max_lateral_m;
+  ao.estimate_motion = false;
+  ao.max_iterations = o.iterations_per_level;
+  const SurfaceAligner aligner(ao);
+
+  AlignerTarget target;
+  target.pyramid = &right;
+  target.rig_fixed = true;
+  target.target_T_reference = Eigen::Translation3d(-rig_.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
+  AlignmentProblem prob;
+  prob.reference = &left;
+  prob.rig = &rig_;
+  prob.grid = &res.grid;
+  prob.targets = {target};
+  AlignmentReport last;
+  for (int l = top; l >= 0; --l) {
+    prob.level = l;
+    Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
+    if (o.use_hierarchy && l > 0) {
+      const GroundGrid coarse = res.grid.coarsened(1 << l);
+      basis = res.grid.prolongationFrom(coarse);
+      Eigen::VectorXd zc(coarse.vertexCount());
+      for (int r = 0; r < coarse.rows; ++r)
+        for (int c = 0; c < coarse.cols; ++c) zc[coarse.index(r, c)] = state.heights[res.grid.index(r << l, c << l)];
+      prob.basis = &basis;
+      prob.update_weight = updateWeights(coarse, zc, state.camera_T_ground);
+    } else {
+      prob.basis = nullptr;
+      prob.update_weight = updateWeights(res.grid, state.heights, state.camera_T_ground);
+    }
+    last = aligner.align(prob, state);
+    res.reports.push_back(last);
+    if (last.degenerate) {
+      res.message = "normal equations degenerate at mesh level " + std::to_string(l);
+      return res;
+    }
+  }
+  res.heights = state.heights;
+  res.information = last.vertex_information;
+  res.pixels = last.vertex_pixels;
+  for (int v = 0; v < res.grid.vertexCount(); ++v) {
+    if (res.pixels[v] == 0) res.heights[v] = std::numeric_limits<double>::quiet_NaN();
+  }
+  res.photometric = state.photometric[0];
+  res.median_abs_residual_grey = last.median_abs_residual_grey;
+  res.ok = true;
+  return res;
+}
+
+cv::Mat StereoEstimator::impliedDisparity(const StereoResult& result, const ImagePyramid& left) const {
+  if (!result.ok) return cv::Mat::zeros(left.height(), left.width(), CV_32F);
+  SurfaceAlignerOptions ao = options_.aligner;
+  ao.min_depth_m = options_.min_range_m;
+  ao.max_depth_m = options_.max_range_m;
+  ao.max_lateral_m = options_.max_lateral_m;
+  const SurfaceAligner aligner(ao);
+  AlignmentProblem prob;
+  prob.reference = &left;
+  prob.rig = &rig_;
+  prob.grid = &result.grid;
+  prob.level = 0;
+  SurfaceState state;
+  state.camera_T_ground = result.ground_T_camera.inverse();
+  state.heights = result.heights;
+  const cv::Mat rho = aligner.renderInverseDepth(prob, state);
+  return rho * rig_.disparityTimesDepth();
+}
+
+}  // namespace stereo_ground_dem
