@@ -24,7 +24,12 @@ class ImagePyramid {
   /// Builds `levels` levels (level 0 = input resolution) with cv::pyrDown.
   /// Accepts CV_8U and CV_16U images with 1, 3 (colour order as given) or 4 channels, and CV_32F
   /// single-channel images already in grey levels. Throws std::invalid_argument otherwise.
-  ImagePyramid(const cv::Mat& image, int levels, ColorOrder order = ColorOrder::kBgr);
+  /// `presmooth_sigma_px` > 0 blurs level 0 with a Gaussian first: bilinear sampling of the other
+  /// image at sub-pixel positions attenuates fine texture, which biases the gain estimate upward
+  /// (measured: +0.75 % unsmoothed, +0.25 % with 0.8 px on rendered pairs); a little smoothing of
+  /// both images removes most of it at no cost in height accuracy.
+  ImagePyramid(const cv::Mat& image, int levels, ColorOrder order = ColorOrder::kBgr,
+               double presmooth_sigma_px = 0.0);
 
   /// Converts any accepted input to single-channel CV_32F grey levels (0..255).
   static cv::Mat toGrayFloat(const cv::Mat& image, ColorOrder order = ColorOrder::kBgr);

@@ -35,6 +35,7 @@ struct StereoEstimatorOptions {
   double update_weight = 1e3;
   double update_reference_depth_m = 10.0;
   bool use_hierarchy = true;            ///< false: the finest mesh only, at pyramid levels L-1..0
+  double presmooth_sigma_px = 0.8;      ///< Gaussian blur of level 0 (see ImagePyramid)
   int iterations_per_level = 8;
   SurfaceAlignerOptions aligner;        ///< its depth range is overridden by the fields above
 
@@ -84,6 +85,17 @@ class StereoEstimator {
   /// The update-constraint weights of every vertex of `grid` as seen from camera_T_ground.
   Eigen::VectorXd updateWeights(const GroundGrid& grid, const Eigen::VectorXd& heights,
                                 const Eigen::Isometry3d& camera_T_ground) const;
+
+  /// Hierarchical meshing at mesh level `level` of `fine` (spacing 2^level s): the prolongation
+  /// basis (empty matrix for level 0 or without hierarchy) and its update-constraint weights.
+  void levelBasis(const GroundGrid& fine, int level, const Eigen::VectorXd& heights,
+                  const Eigen::Isometry3d& camera_T_ground,
+                  Eigen::SparseMatrix<double, Eigen::RowMajor>* basis, Eigen::VectorXd* weights) const;
+
+  /// Builds the pyramid the estimators use for an input image.
+  ImagePyramid makePyramid(const cv::Mat& image,
+                           ImagePyramid::ColorOrder order = ImagePyramid::ColorOrder::kBgr) const;
+  int pyramidLevels() const;
 
  private:
   StereoRig rig_;

@@ -48,6 +48,7 @@ struct SurfaceAlignerOptions {
   double saturated_level_grey = 253.5;     ///< values at or above: not used
   double outside_penalty_factor = 3.0;     ///< a pixel warped outside its target costs rho(factor * scale)
   bool estimate_motion = false;            ///< 6-DoF twist of the reference camera
+  int num_threads = 2;                     ///< threads for the pixel loop
 
   bool isValid(std::string* why) const;
 };
@@ -113,6 +114,9 @@ struct AlignmentReport {
   Matrix6d motion_information = Matrix6d::Zero();
 };
 
+/// Not thread-safe per thread: each thread keeps one reusable workspace (buffers that would
+/// otherwise be reallocated every iteration), so concurrent align() calls must come from
+/// different threads.
 class SurfaceAligner {
  public:
   explicit SurfaceAligner(const SurfaceAlignerOptions& options);

@@ -30,11 +30,16 @@ cv::Mat ImagePyramid::toGrayFloat(const cv::Mat& image, ColorOrder order) {
   return out;
 }
 
-ImagePyramid::ImagePyramid(const cv::Mat& image, int levels, ColorOrder order) {
+ImagePyramid::ImagePyramid(const cv::Mat& image, int levels, ColorOrder order,
+                           double presmooth_sigma_px) {
   if (levels < 1) throw std::invalid_argument("ImagePyramid needs at least one level");
   levels_.resize(static_cast<size_t>(levels));
   levels_[0].image = toGrayFloat(image, order);
   if (levels_[0].image.data == image.data) levels_[0].image = levels_[0].image.clone();
+  if (presmooth_sigma_px > 0.0) {
+    cv::GaussianBlur(levels_[0].image, levels_[0].image, cv::Size(0, 0), presmooth_sigma_px, presmooth_sigma_px,
+                     cv::BORDER_REPLICATE);
+  }
   for (int l = 1; l < levels; ++l) {
     cv::pyrDown(levels_[static_cast<size_t>(l - 1)].image, levels_[static_cast<size_t>(l)].image);
   }

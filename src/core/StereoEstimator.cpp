@@ -191,8 +191,31 @@ StereoResult StereoEstimator::estimate(const cv::Mat& left, const cv::Mat& right
     r.message = os.str();
     return r;
   }
-  const int levels = std::max(options_.mesh_levels, options_.plane_fit_coarsest_level + 1);
-  return estimate(ImagePyramid(left, levels), ImagePyramid(right, levels));
+  return estimate(makePyramid(left), makePyramid(right));
+}
+
+int StereoEstimator::pyramidLevels() const {
+  return std::max(options_.mesh_levels, options_.plane_fit_coarsest_level + 1);
+}
+
+ImagePyramid StereoEstimator::makePyramid(const cv::Mat& image, ImagePyramid::ColorOrder order) const {
+  return ImagePyramid(image, pyramidLevels(), order, options_.presmooth_sigma_px);
+}
+
+void StereoEstimator::levelBasis(const GroundGrid& fine, int level, const Eigen::VectorXd& heights,
+                                 const Eigen::Isometry3d& camera_T_ground,
+                                 Eigen::SparseMatrix<double, Eigen::RowMajor>* basis, Eigen::VectorXd* weights) const {
+  if (options_.use_hierarchy && level > 0) {
+    const GroundGrid coarse = fine.coarsened(1 << level);
+    *basis = fine.prolongationFrom(coarse);
+    Eigen::VectorXd zc(coarse.vertexCount());
+    for (int r = 0; r < coarse.rows; ++r)
+      for (int c = 0; c < coarse.cols; ++c) zc[coarse.index(r, c)] = heights[fine.index(r << level, c << level)];
+    *weights = updateWeights(coarse, zc, camera_T_ground);
+  } else {
+    *basis = Eigen::SparseMatrix<double, Eigen::RowMajor>();
+    *weights = updateWeights(fine, heights, camera_T_ground);
+  }
 }
 
 StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyramid& right) const {
@@ -245,18 +268,8 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   for (int l = top; l >= 0; --l) {
     prob.level = l;
     Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
-    if (o.use_hierarchy && l > 0) {
-      const GroundGrid coarse = res.grid.coarsened(1 << l);
-      basis = res.grid.prolongationFrom(coarse);
-      Eigen::VectorXd zc(coarse.vertexCount());
-      for (int r = 0; r < coarse.rows; ++r)
-        for (int c = 0; c < coarse.cols; ++c) zc[coarse.index(r, c)] = state.heights[res.grid.index(r << l, c << l)];
-      prob.basis = &basis;
-      prob.update_weight = updateWeights(coarse, zc, state.camera_T_ground);
-    } else {
-      prob.basis = nullptr;
-      prob.update_weight = updateWeights(res.grid, state.heights, state.camera_T_ground);
-    }
+    levelBasis(res.grid, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
+    prob.basis = basis.size() > 0 ? &basis : nullptr;
     last = aligner.align(prob, state);
     res.reports.push_back(last);
     if (last.degenerate) {

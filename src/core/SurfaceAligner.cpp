@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "stereo_ground_dem/PlaneGeometry.hpp"
 #include "stereo_ground_dem/TriangleRasterizer.hpp"
@@ -38,14 +40,15 @@ using Matrix36d = Eigen::Matrix<double, 3, 6>;
 using Matrix62d = Eigen::Matrix<double, 6, 2>;
 using SpMat = Eigen::SparseMatrix<double>;
 
-/// Per working triangle and pair: sums over its pixels of the inverse compositional Jacobian in
-/// the plane-increment space (delta, 3), with the photometric (I0, 1) and motion parts.
-struct TriangleAccumulator {
-  Eigen::Matrix3d dd = Eigen::Matrix3d::Zero();  ///< sum w Jd^T Jd
-  Eigen::Vector3d de = Eigen::Vector3d::Zero();  ///< sum w Jd^T e
-  Matrix32d dp = Matrix32d::Zero();              ///< sum w Jd^T (I0, 1)
-  Matrix36d dm = Matrix36d::Zero();              ///< sum w Jd^T Jm (world-fixed pairs)
-};
+// Per working triangle and pair, the sums over its pixels of the inverse compositional Jacobian
+// in the plane-increment space (delta, 3) with the residual, the photometric part (I0, 1) and,
+// for world-fixed pairs, the motion part. Flat layout per triangle:
+//   [0..5]   sum w Jd^T Jd   (xx, xy, xz, yy, yz, zz)
+//   [6..8]   sum w Jd^T e
+//   [9..14]  sum w Jd^T (I0, 1)  (row-major 3x2)
+//   [15..32] sum w Jd^T Jm       (row-major 3x6, world-fixed pairs only)
+constexpr int kStrideRig = 15;
+constexpr int kStrideWorld = 33;
 
 struct PairAccumulator {
   Eigen::Matrix2d pp = Eigen::Matrix2d::Zero();
@@ -56,11 +59,44 @@ struct PairAccumulator {
   double cost = 0.0;  ///< sum rho(e) incl. outside penalties (unscaled)
   int valid = 0;
   int outside = 0;
+  void add(const PairAccumulator& o) {
+    pp += o.pp;
+    pe += o.pe;
+    mm += o.mm;
+    mp += o.mp;
+    me += o.me;
+    cost += o.cost;
+    valid += o.valid;
+    outside += o.outside;
+  }
+};
+
+/// One thread's share of an evaluation.
+struct Chunk {
+  std::vector<std::vector<double>> tri;  ///< [pair] stride * triangles
+  std::vector<PairAccumulator> pair;
+  std::vector<int> tri_pixels;
+  std::vector<float> abs_residuals;
+  void reset(const std::vector<int>& strides, size_t nt) {
+    tri.resize(strides.size());
+    for (size_t j = 0; j < strides.size(); ++j) tri[j].assign(static_cast<size_t>(strides[j]) * nt, 0.0);
+    pair.assign(strides.size(), PairAccumulator());
+    tri_pixels.assign(nt, 0);
+    abs_residuals.clear();
+  }
+};
+
+struct Evaluation {
+  std::vector<Chunk> chunks;  ///< chunks[0] holds the merged sums after evaluate()
+  double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
+  double total() const { return data_cost + smoothness_cost + prior_cost; }
+  const Chunk& sums() const { return chunks[0]; }
 };
 
 struct TriangleGeometry {
-  std::array<int, 3> vertex;       ///< fine vertex indices
-  std::array<int, 3> local;        ///< compact active indices
+  std::array<int, 3> vertex{};     ///< fine vertex indices
+  std::array<int, 3> local{};      ///< compact active indices
+  std::array<int, 9> value_index{};  ///< positions of its 3x3 block in the height matrix' values
   Eigen::Matrix3d heights_to_plane;
   // per evaluation:
   Eigen::Vector3d m = Eigen::Vector3d::Zero();
@@ -72,18 +108,17 @@ struct PairContext {
   Eigen::Isometry3d target_T_reference;
   Eigen::Vector3d t_prime;  ///< R_j^T t_j
   bool horizontal_only;     ///< R = I and t = (tx, 0, 0): warps move along rows only
+  bool world;               ///< world-fixed pair with motion estimated: accumulate Jm
   int photo_index = -1;     ///< first global index of (dg, db), -1 when fixed
   PhotometricParams photometric;
   const cv::Mat* image;
 };
 
-struct Evaluation {
-  std::vector<std::vector<TriangleAccumulator>> tri;  ///< [pair][working triangle]
-  std::vector<PairAccumulator> pair;
-  std::vector<int> tri_pixels;
-  std::vector<float> abs_residuals;
-  double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
-  double total() const { return data_cost + smoothness_cost + prior_cost; }
+/// Buffers reused across iterations, levels and frames (one per thread).
+struct Workspace {
+  TriangleRasterizer raster;
+  Evaluation eval[2];
+  std::vector<std::array<float, 9>> homographies;
 };
 
 inline float bilinear(const cv::Mat& img, float u, float v) {
@@ -94,11 +129,24 @@ inline float bilinear(const cv::Mat& img, float u, float v) {
   return (1.0f - fv) * ((1.0f - fu) * r0[0] + fu * r0[1]) + fv * ((1.0f - fu) * r1[0] + fu * r1[1]);
 }
 
+/// log(1 + x) for x >= 0 to ~1e-6 relative accuracy, much cheaper than std::log1p: the robust cost
+/// only decides whether a step is accepted, and both sides of that comparison use this function.
+inline float fastLog1p(float x) {
+  const float y = 1.0f + x;
+  int exponent;
+  const float mant = std::frexp(y, &exponent);  // y = mant * 2^e, mant in [0.5, 1)
+  const float t = (mant - 0.70710678f) / (mant + 0.70710678f);
+  const float t2 = t * t;
+  // ln(mant) = ln(sqrt(1/2)) + 2 atanh(t)
+  const float ln_m = -0.34657359f + 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
+  return ln_m + 0.69314718f * static_cast<float>(exponent);
+}
+
 /// Everything about one level that stays fixed while it iterates.
 class LevelSolver {
  public:
-  LevelSolver(const SurfaceAlignerOptions& o, const AlignmentProblem& p, const SurfaceState& s)
-      : opt_(o), prob_(p) {
+  LevelSolver(const SurfaceAlignerOptions& o, const AlignmentProblem& p, const SurfaceState& s, Workspace* ws)
+      : opt_(o), prob_(p), ws_(ws) {
     const GroundGrid& g = *p.grid;
     rig_ = p.rig->atLevel(p.level);
     ref_ = &p.reference->level(p.level);
@@ -108,6 +156,7 @@ class LevelSolver {
     selectWorkingSet(g, s);
     buildBasis();
     buildSmoothness(g);
+    buildPattern();
     global_count_ = o.estimate_motion ? 6 : 0;
     photo_index_.assign(p.targets.size(), -1);
     for (size_t j = 0; j < p.targets.size(); ++j) {
@@ -115,7 +164,9 @@ class LevelSolver {
         photo_index_[j] = global_count_;
         global_count_ += 2;
       }
+      strides_.push_back(o.estimate_motion && !p.targets[j].rig_fixed ? kStrideWorld : kStrideRig);
     }
+    threads_ = std::max(1, o.num_threads);
   }
 
   int activeCount() const { return static_cast<int>(active_.size()); }
@@ -134,6 +185,7 @@ class LevelSolver {
       c.t_prime = r.transpose() * tt;
       c.horizontal_only = (r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12 &&
                           std::abs(tt.y()) < 1e-12 && std::abs(tt.z()) < 1e-12;
+      c.world = opt_.estimate_motion && !t.rig_fixed;
       c.photo_index = photo_index_[j];
       c.photometric = s.photometric[j];
       c.image = &t.pyramid->level(prob_.level).image;
@@ -142,22 +194,19 @@ class LevelSolver {
   }
 
   /// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
-  void evaluate(const SurfaceState& s, Evaluation* ev, TriangleRasterizer* raster) {
+  void evaluate(const SurfaceState& s, Evaluation* ev) {
     const std::vector<PairContext> pc = pairs(s);
     const size_t np = pc.size();
     const size_t nt = tris_.size();
-    ev->tri.assign(np, std::vector<TriangleAccumulator>(nt));
-    ev->pair.assign(np, PairAccumulator());
-    ev->tri_pixels.assign(nt, 0);
-    ev->abs_residuals.clear();
-
     // Per-triangle planes and, per pair, homographies.
     const Eigen::Isometry3d& ctg = s.camera_T_ground;
     const Eigen::Vector3d cam_pos = -(ctg.linear().transpose() * ctg.translation());
     const Eigen::Matrix3d k = rig_.K();
     const Eigen::Matrix3d kinv = k.inverse();
-    std::vector<std::array<float, 9>> hom(np * nt);
-    raster->reset(width_, height_, opt_.border_margin_px);
+    auto& hom = ws_->homographies;
+    hom.resize(np * nt);
+    TriangleRasterizer& raster = ws_->raster;
+    raster.reset(width_, height_, opt_.border_margin_px);
     for (size_t i = 0; i < nt; ++i) {
       TriangleGeometry& t = tris_[i];
       t.drawn = false;
@@ -170,7 +219,7 @@ class LevelSolver {
       TriangleRasterizer::Triangle rt;
       bool ok = true;
       for (int a = 0; a < 3; ++a) {
-        const Eigen::Vector2d xy = prob_.grid->position(t.vertex[a]);
+        const Eigen::Vector2d xy = prob_.grid->position(t.vertex[static_cast<size_t>(a)]);
         const Eigen::Vector3d xc = ctg * Eigen::Vector3d(xy.x(), xy.y(), z[a]);
         if (!(xc.z() > 0.1)) {
           ok = false;
@@ -185,7 +234,7 @@ class LevelSolver {
       rt.rho_c = t.m.z() - t.m.x() * rig_.cx / rig_.fx - t.m.y() * rig_.cy / rig_.fy;
       rt.id = static_cast<int>(i);
       t.drawn = true;
-      raster->draw(rt);
+      raster.draw(rt);
       for (size_t j = 0; j < np; ++j) {
         const Eigen::Matrix3d h = k * (pc[j].target_T_reference.linear() +
                                        pc[j].target_T_reference.translation() * t.m.transpose()) *
@@ -194,100 +243,50 @@ class LevelSolver {
         for (int a = 0; a < 9; ++a) hh[static_cast<size_t>(a)] = static_cast<float>(h(a / 3, a % 3));
       }
     }
-
-    // Pixel loop: residuals, robust weights and the inverse compositional Jacobians.
-    const float c2 = static_cast<float>(opt_.robust_scale_grey * opt_.robust_scale_grey);
-    const bool robust = opt_.robust_scale_grey > 0.0;
-    auto rho = [&](double e) { return robust ? c2 * std::log1p(e * e / c2) : e * e; };
-    const double outside_cost = rho(opt_.outside_penalty_factor *
-                                    (robust ? opt_.robust_scale_grey : opt_.image_noise_std_grey));
-    const float dark = static_cast<float>(opt_.dark_level_grey);
-    const float sat = static_cast<float>(opt_.saturated_level_grey);
-    const float fx = static_cast<float>(rig_.fx), fy = static_cast<float>(rig_.fy);
-    const float cx = static_cast<float>(rig_.cx), cy = static_cast<float>(rig_.cy);
-    const bool motion = opt_.estimate_motion;
-    const cv::Mat& labels = raster->labels();
-    constexpr int kSampleStride = 7;  // every 7th residual feeds the median statistic
-    int sample_counter = 0;
-    for (int v = 0; v < height_; ++v) {
-      const int b = raster->rowBegin(v), e_col = raster->rowEnd(v);
-      if (b > e_col) continue;
-      const int* lab = labels.ptr<int>(v);
-      const float* i0row = ref_->image.ptr<float>(v);
-      const float* gurow = ref_->grad_u.ptr<float>(v);
-      const float* gvrow = ref_->grad_v.ptr<float>(v);
-      const float y = (static_cast<float>(v) - cy) / fy;
-      for (int u = b; u <= e_col; ++u) {
-        const int ti = lab[u];
-        if (ti < 0) continue;
-        const float i0 = i0row[u];
-        if (i0 <= dark || i0 >= sat) continue;
-        ev->tri_pixels[static_cast<size_t>(ti)]++;
-        const float x = (static_cast<float>(u) - cx) / fx;
-        const float gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
-        const Eigen::Vector3d cvec(gfu, gfv, -(gfu * x + gfv * y));
-        const Eigen::Vector3d xhat(x, y, 1.0);
-        for (size_t j = 0; j < np; ++j) {
-          const PairContext& p = pc[j];
-          const auto& h = hom[j * nt + static_cast<size_t>(ti)];
-          const cv::Mat& img = *p.image;
-          float uj, vj;
-          const float uf = static_cast<float>(u), vf = static_cast<float>(v);
-          if (p.horizontal_only) {
-            uj = h[0] * uf + h[1] * vf + h[2];
-            vj = vf;
-          } else {
-            const float wz = h[6] * uf + h[7] * vf + h[8];
-            if (!(wz > 1e-6f)) {
-              ev->pair[j].cost += outside_cost;
-              ev->pair[j].outside++;
-              continue;
-            }
-            uj = (h[0] * uf + h[1] * vf + h[2]) / wz;
-            vj = (h[3] * uf + h[4] * vf + h[5]) / wz;
-          }
-          if (!(uj >= 0.0f && vj >= 0.0f && uj < img.cols - 1 && vj < img.rows - 1)) {
-            ev->pair[j].cost += outside_cost;
-            ev->pair[j].outside++;
-            continue;
-          }
-          const float ij = bilinear(img, uj, vj);
-          if (ij <= dark || ij >= sat) continue;
-          const double e = i0 - (p.photometric.gain * ij + p.photometric.bias_grey);
-          const double w = robust ? 1.0 / (1.0 + e * e / c2) : 1.0;
-          PairAccumulator& pa = ev->pair[j];
-          pa.cost += rho(e);
-          pa.valid++;
-          if ((++sample_counter % kSampleStride) == 0) {
-            ev->abs_residuals.push_back(static_cast<float>(std::abs(e)));
-          }
-          const double sc = cvec.dot(p.t_prime);
-          const Eigen::Vector3d jd = sc * xhat;
-          const Eigen::Vector2d jp(i0, 1.0);
-          TriangleAccumulator& ta = ev->tri[j][static_cast<size_t>(ti)];
-          const Eigen::Vector3d wjd = w * jd;
-          ta.dd.noalias() += wjd * jd.transpose();
-          ta.de += wjd * e;
-          if (p.photo_index >= 0) {
-            ta.dp.noalias() += wjd * jp.transpose();
-            pa.pp.noalias() += (w * jp) * jp.transpose();
-            pa.pe += w * e * jp;
-          }
-          if (motion && !prob_.targets[j].rig_fixed) {
-            const double rho_u = tris_[static_cast<size_t>(ti)].m.dot(xhat);
-            Vector6d jm;
-            jm.head<3>() = rho_u * cvec;
-            jm.tail<3>() = xhat.cross(cvec);
-            ta.dm.noalias() += wjd * jm.transpose();
-            pa.mm.noalias() += (w * jm) * jm.transpose();
-            pa.me += w * e * jm;
-            if (p.photo_index >= 0) pa.mp.noalias() += (w * jm) * jp.transpose();
-          }
+    // Rows split into chunks of about equal pixel counts, one per thread.
+    std::vector<int> bounds{0};
+    {
+      long total = 0;
+      for (int v = 0; v < height_; ++v) total += std::max(0, raster.rowEnd(v) - raster.rowBegin(v) + 1);
+      long acc = 0;
+      int next = 1;
+      for (int v = 0; v < height_ && next < threads_; ++v) {
+        acc += std::max(0, raster.rowEnd(v) - raster.rowBegin(v) + 1);
+        if (acc * threads_ >= total * next) {
+          bounds.push_back(v + 1);
+          ++next;
         }
       }
+      while (static_cast<int>(bounds.size()) <= threads_) bounds.push_back(height_);
+      bounds.back() = height_;
+    }
+    ev->chunks.resize(static_cast<size_t>(threads_));
+    auto work = [&](int c) {
+      Chunk& ch = ev->chunks[static_cast<size_t>(c)];
+      ch.reset(strides_, nt);
+      accumulateRows(pc, bounds[static_cast<size_t>(c)], bounds[static_cast<size_t>(c) + 1], &ch);
+    };
+    if (threads_ > 1) {
+      tbb::task_arena arena(threads_);
+      arena.execute([&] { tbb::parallel_for(0, threads_, work); });
+    } else {
+      work(0);
+    }
+    Chunk& sum = ev->chunks[0];
+    for (int c = 1; c < threads_; ++c) {
+      const Chunk& o = ev->chunks[static_cast<size_t>(c)];
+      for (size_t j = 0; j < np; ++j) {
+        double* dst = sum.tri[j].data();
+        const double* src = o.tri[j].data();
+        const size_t n = sum.tri[j].size();
+        for (size_t i = 0; i < n; ++i) dst[i] += src[i];
+        sum.pair[j].add(o.pair[j]);
+      }
+      for (size_t i = 0; i < nt; ++i) sum.tri_pixels[i] += o.tri_pixels[i];
+      sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
     }
     ev->data_cost = 0.0;
-    for (const auto& pa : ev->pair) ev->data_cost += data_scale_ * pa.cost;
+    for (const auto& pa : sum.pair) ev->data_cost += data_scale_ * pa.cost;
     const Eigen::VectorXd za = activeHeights(s);
     ev->smoothness_cost = (smooth_ * za).squaredNorm();
     ev->prior_cost = 0.0;
@@ -303,6 +302,133 @@ class LevelSolver {
     }
   }
 
+  /// The pixel loop over rows [v0, v1): residuals, robust weights and the inverse compositional
+  /// Jacobians accumulated per triangle and pair.
+  void accumulateRows(const std::vector<PairContext>& pc, int v0, int v1, Chunk* ch) const {
+    const size_t np = pc.size();
+    const size_t nt = tris_.size();
+    const TriangleRasterizer& raster = ws_->raster;
+    const auto& hom = ws_->homographies;
+    const bool robust = opt_.robust_scale_grey > 0.0;
+    const float c2 = static_cast<float>(opt_.robust_scale_grey * opt_.robust_scale_grey);
+    const float inv_c2 = robust ? 1.0f / c2 : 0.0f;
+    auto rho = [&](float e) { return robust ? c2 * fastLog1p(e * e * inv_c2) : e * e; };
+    const double outside_cost = rho(static_cast<float>(
+        opt_.outside_penalty_factor * (robust ? opt_.robust_scale_grey : opt_.image_noise_std_grey)));
+    const float dark = static_cast<float>(opt_.dark_level_grey);
+    const float sat = static_cast<float>(opt_.saturated_level_grey);
+    const float fx = static_cast<float>(rig_.fx), fy = static_cast<float>(rig_.fy);
+    const float cx = static_cast<float>(rig_.cx), cy = static_cast<float>(rig_.cy);
+    const cv::Mat& labels = raster.labels();
+    constexpr int kSampleStride = 7;  // every 7th residual feeds the median statistic
+    int sample_counter = 0;
+    for (int v = v0; v < v1; ++v) {
+      const int b = raster.rowBegin(v), e_col = raster.rowEnd(v);
+      if (b > e_col) continue;
+      const int* lab = labels.ptr<int>(v);
+      const float* i0row = ref_->image.ptr<float>(v);
+      const float* gurow = ref_->grad_u.ptr<float>(v);
+      const float* gvrow = ref_->grad_v.ptr<float>(v);
+      const float y = (static_cast<float>(v) - cy) / fy;
+      const float vf = static_cast<float>(v);
+      for (int u = b; u <= e_col; ++u) {
+        const int ti = lab[u];
+        if (ti < 0) continue;
+        const float i0 = i0row[u];
+        if (i0 <= dark || i0 >= sat) continue;
+        ch->tri_pixels[static_cast<size_t>(ti)]++;
+        const float x = (static_cast<float>(u) - cx) / fx;
+        const float uf = static_cast<float>(u);
+        const double gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
+        const double c0 = gfu, c1 = gfv, c2v = -(gfu * x + gfv * y);
+        for (size_t j = 0; j < np; ++j) {
+          const PairContext& p = pc[j];
+          const auto& h = hom[j * nt + static_cast<size_t>(ti)];
+          const cv::Mat& img = *p.image;
+          PairAccumulator& pa = ch->pair[j];
+          float uj, vj;
+          if (p.horizontal_only) {
+            uj = h[0] * uf + h[1] * vf + h[2];
+            vj = vf;
+          } else {
+            const float wz = h[6] * uf + h[7] * vf + h[8];
+            if (!(wz > 1e-6f)) {
+              pa.cost += outside_cost;
+              pa.outside++;
+              continue;
+            }
+            const float iw = 1.0f / wz;
+            uj = (h[0] * uf + h[1] * vf + h[2]) * iw;
+            vj = (h[3] * uf + h[4] * vf + h[5]) * iw;
+          }
+          if (!(uj >= 0.0f && vj >= 0.0f && uj < img.cols - 1 && vj < img.rows - 1)) {
+            pa.cost += outside_cost;
+            pa.outside++;
+            continue;
+          }
+          const float ij = bilinear(img, uj, vj);
+          if (ij <= dark || ij >= sat) continue;
+          const float ef = static_cast<float>(i0 - (p.photometric.gain * ij + p.photometric.bias_grey));
+          const double e = ef;
+          const double w = robust ? 1.0 / (1.0 + ef * ef * inv_c2) : 1.0;
+          pa.cost += rho(ef);
+          pa.valid++;
+          if ((++sample_counter % kSampleStride) == 0) ch->abs_residuals.push_back(std::abs(ef));
+          const double sc = c0 * p.t_prime.x() + c1 * p.t_prime.y() + c2v * p.t_prime.z();
+          const double j0 = sc * x, j1 = sc * y, j2 = sc;
+          const double w0 = w * j0, w1 = w * j1, w2 = w * j2;
+          double* a = ch->tri[j].data() + static_cast<size_t>(ti) * static_cast<size_t>(p.world ? kStrideWorld : kStrideRig);
+          a[0] += w0 * j0;
+          a[1] += w0 * j1;
+          a[2] += w0 * j2;
+          a[3] += w1 * j1;
+          a[4] += w1 * j2;
+          a[5] += w2 * j2;
+          a[6] += w0 * e;
+          a[7] += w1 * e;
+          a[8] += w2 * e;
+          if (p.photo_index >= 0) {
+            a[9] += w0 * i0;
+            a[10] += w0;
+            a[11] += w1 * i0;
+            a[12] += w1;
+            a[13] += w2 * i0;
+            a[14] += w2;
+            pa.pp(0, 0) += w * i0 * i0;
+            pa.pp(0, 1) += w * i0;
+            pa.pp(1, 1) += w;
+            pa.pe(0) += w * e * i0;
+            pa.pe(1) += w * e;
+          }
+          if (p.world) {
+            const double rho_u = tris_[static_cast<size_t>(ti)].m.dot(Eigen::Vector3d(x, y, 1.0));
+            const double jm[6] = {rho_u * c0, rho_u * c1, rho_u * c2v, y * c2v - c1, c0 - x * c2v, x * c1 - y * c0};
+            double* am = a + 15;
+            for (int c = 0; c < 6; ++c) {
+              am[c] += w0 * jm[c];
+              am[6 + c] += w1 * jm[c];
+              am[12 + c] += w2 * jm[c];
+            }
+            for (int r = 0; r < 6; ++r) {
+              const double wr = w * jm[r];
+              for (int c = r; c < 6; ++c) pa.mm(r, c) += wr * jm[c];
+              pa.me(r) += wr * e;
+              if (p.photo_index >= 0) {
+                pa.mp(r, 0) += wr * i0;
+                pa.mp(r, 1) += wr;
+              }
+            }
+          }
+        }
+      }
+    }
+    for (auto& pa : ch->pair) {
+      pa.pp(1, 0) = pa.pp(0, 1);
+      for (int r = 0; r < 6; ++r)
+        for (int c = 0; c < r; ++c) pa.mm(r, c) = pa.mm(c, r);
+    }
+  }
+
   struct Step {
     Eigen::VectorXd dtheta;  ///< basis coefficients (compact controls)
     Eigen::VectorXd dglobal; ///< [motion (6)][photometric (2 per estimated pair)]
@@ -311,11 +437,14 @@ class LevelSolver {
 
   /// Builds and solves the normal equations of the Gauss-Newton step at the evaluated state.
   Step solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report) {
+    const Chunk& sum = ev.sums();
     const std::vector<PairContext> pc = pairs(s);
     const int na = activeCount();
     const int ng = global_count_;
-    std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(tris_.size() * 9 * 2 + static_cast<size_t>(na));
+    // Height block on the fixed pattern: smoothness (constant) + data + prior.
+    SpMat& hzz = hzz_;
+    Eigen::Map<Eigen::VectorXd> values(hzz.valuePtr(), hzz.nonZeros());
+    values = smooth_values_;
     Eigen::VectorXd gz = Eigen::VectorXd::Zero(na);
     Eigen::MatrixXd hzg = Eigen::MatrixXd::Zero(na, ng);
     Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
@@ -326,12 +455,13 @@ class LevelSolver {
       const PairContext& p = pc[j];
       const bool rig = prob_.targets[j].rig_fixed;
       const int pi = p.photo_index;
-      const PairAccumulator& pa = ev.pair[j];
+      const PairAccumulator& pa = sum.pair[j];
+      const int stride = strides_[j];
       if (pi >= 0) {
         hgg.block<2, 2>(pi, pi) += ks * pa.pp;
         gg.segment<2>(pi) += ks * pa.pe;
       }
-      if (opt_.estimate_motion && !rig) {
+      if (p.world) {
         hgg.topLeftCorner<6, 6>() += ks * pa.mm;
         gg.head<6>() += ks * pa.me;
         if (pi >= 0) {
@@ -341,40 +471,46 @@ class LevelSolver {
       }
       for (size_t i = 0; i < tris_.size(); ++i) {
         const TriangleGeometry& t = tris_[i];
-        if (!t.drawn || ev.tri_pixels[i] == 0) continue;
-        const TriangleAccumulator& ta = ev.tri[j][i];
+        if (!t.drawn || sum.tri_pixels[i] == 0) continue;
+        const double* acc = sum.tri[j].data() + i * static_cast<size_t>(stride);
+        Eigen::Matrix3d dd;
+        dd << acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5];
+        const Eigen::Vector3d de(acc[6], acc[7], acc[8]);
+        Matrix32d dp;
+        dp << acc[9], acc[10], acc[11], acc[12], acc[13], acc[14];
         const double scale = PlaneGeometry::deltaScale(t.m, p.t_prime);
         const Eigen::Matrix3d a = scale * t.dm_dz;  // delta = a * dz
         if (prob_.estimate_heights) {
-          const Eigen::Matrix3d hzz = ks * a.transpose() * ta.dd * a;
-          const Eigen::Vector3d g3 = ks * a.transpose() * ta.de;
+          const Eigen::Matrix3d hz = ks * a.transpose() * dd * a;
+          const Eigen::Vector3d g3 = ks * a.transpose() * de;
           for (int r = 0; r < 3; ++r) {
-            gz[t.local[r]] += g3[r];
-            data_diag[t.local[r]] += hzz(r, r);
-            for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[r], t.local[c], hzz(r, c));
+            gz[t.local[static_cast<size_t>(r)]] += g3[r];
+            data_diag[t.local[static_cast<size_t>(r)]] += hz(r, r);
+            for (int c = 0; c < 3; ++c) values[t.value_index[static_cast<size_t>(r * 3 + c)]] += hz(r, c);
           }
           if (pi >= 0) {
-            const Matrix32d hzp = ks * a.transpose() * ta.dp;
-            for (int r = 0; r < 3; ++r) hzg.block<1, 2>(t.local[r], pi) += hzp.row(r);
+            const Matrix32d hzp = ks * a.transpose() * dp;
+            for (int r = 0; r < 3; ++r) hzg.block<1, 2>(t.local[static_cast<size_t>(r)], pi) += hzp.row(r);
           }
         }
         if (opt_.estimate_motion) {
           Matrix36d hzm;
           if (rig) {
             const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(t.m);
-            hzm = ks * a.transpose() * ta.dd * bm;
-            hgg.topLeftCorner<6, 6>() += ks * bm.transpose() * ta.dd * bm;
-            gg.head<6>() += ks * bm.transpose() * ta.de;
+            hzm = ks * a.transpose() * dd * bm;
+            hgg.topLeftCorner<6, 6>() += ks * bm.transpose() * dd * bm;
+            gg.head<6>() += ks * bm.transpose() * de;
             if (pi >= 0) {
-              const Matrix62d hmp = ks * bm.transpose() * ta.dp;
+              const Matrix62d hmp = ks * bm.transpose() * dp;
               hgg.block<6, 2>(0, pi) += hmp;
               hgg.block<2, 6>(pi, 0) += hmp.transpose();
             }
           } else {
-            hzm = ks * a.transpose() * ta.dm;
+            const Eigen::Map<const Eigen::Matrix<double, 3, 6, Eigen::RowMajor>> dm(acc + 15);
+            hzm = ks * a.transpose() * dm;
           }
           if (prob_.estimate_heights) {
-            for (int r = 0; r < 3; ++r) hzg.block<1, 6>(t.local[r], 0) += hzm.row(r);
+            for (int r = 0; r < 3; ++r) hzg.block<1, 6>(t.local[static_cast<size_t>(r)], 0) += hzm.row(r);
           }
         }
       }
@@ -388,56 +524,57 @@ class LevelSolver {
       step.dtheta = Eigen::VectorXd::Zero(control_count_);
       if (ng == 0) return step;
       const Eigen::LDLT<Eigen::MatrixXd> ldlt(hgg);
-      if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return step;
+      if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
+        report->degenerate = true;
+        return step;
+      }
       step.dglobal = ldlt.solve(-gg);
       step.ok = step.dglobal.allFinite();
       if (opt_.estimate_motion) report->motion_information = hgg.topLeftCorner<6, 6>();
       return step;
     }
-    // Smoothness and prior on the fine active heights.
+    // Smoothness and prior gradients on the fine active heights.
     const Eigen::VectorXd za = activeHeights(s);
     gz += smooth_t_smooth_ * za;
-    SpMat hzz(na, na);
-    hzz.setFromTriplets(trip.begin(), trip.end());
-    hzz += smooth_t_smooth_;
     if (prob_.prior) {
-      std::vector<Eigen::Triplet<double>> pt;
       for (int a = 0; a < na; ++a) {
         const int v = active_[static_cast<size_t>(a)];
         const double info = prob_.prior->information[v];
         if (info > 0.0) {
-          pt.emplace_back(a, a, info);
+          values[diag_index_[static_cast<size_t>(a)]] += info;
           gz[a] += info * (s.heights[v] - prob_.prior->mean[v]);
         }
       }
-      SpMat hp(na, na);
-      hp.setFromTriplets(pt.begin(), pt.end());
-      hzz += hp;
     }
-    // Project onto the basis.
-    SpMat hcc;
+    // Project onto the basis; the update constraint on the controls.
     Eigen::VectorXd gc;
     Eigen::MatrixXd hcg;
+    const SpMat* hcc = nullptr;
     if (identity_basis_) {
-      hcc = hzz;
+      for (int c = 0; c < control_count_; ++c) values[diag_index_[static_cast<size_t>(c)]] += mu_[c];
+      hcc = &hzz;
       gc = gz;
       hcg = hzg;
     } else {
-      hcc = (basis_t_ * hzz * basis_).pruned();
+      hcc_ = basis_t_ * hzz * basis_;
+      for (int c = 0; c < control_count_; ++c) hcc_.coeffRef(c, c) += mu_[c];
+      hcc = &hcc_;
       gc = basis_t_ * gz;
       hcg = basis_t_ * hzg;
     }
-    for (int c = 0; c < control_count_; ++c) hcc.coeffRef(c, c) += mu_[c];
-    hcc.makeCompressed();
-    Eigen::SimplicialLDLT<SpMat> chol;
-    chol.compute(hcc);
-    if (chol.info() != Eigen::Success) {
+    if (!analyzed_ || analyzed_nnz_ != hcc->nonZeros()) {
+      chol_.analyzePattern(*hcc);
+      analyzed_ = true;
+      analyzed_nnz_ = hcc->nonZeros();
+    }
+    chol_.factorize(*hcc);
+    if (chol_.info() != Eigen::Success) {
       report->degenerate = true;
       return step;
     }
     if (ng > 0) {
-      const Eigen::MatrixXd hinv_hcg = chol.solve(hcg);
-      const Eigen::VectorXd hinv_gc = chol.solve(gc);
+      const Eigen::MatrixXd hinv_hcg = chol_.solve(hcg);
+      const Eigen::VectorXd hinv_gc = chol_.solve(gc);
       const Eigen::MatrixXd schur = hgg - hcg.transpose() * hinv_hcg;
       const Eigen::LDLT<Eigen::MatrixXd> ldlt(schur);
       if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
@@ -451,7 +588,7 @@ class LevelSolver {
         report->motion_information = schur.topLeftCorner<6, 6>();
       }
     } else {
-      step.dtheta = chol.solve(-gc);
+      step.dtheta = chol_.solve(-gc);
     }
     step.ok = step.dtheta.allFinite() && step.dglobal.allFinite();
     if (!step.ok) report->degenerate = true;
@@ -496,7 +633,9 @@ class LevelSolver {
   void fillPixels(const Evaluation& ev, AlignmentReport* report) const {
     report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
     for (size_t i = 0; i < tris_.size(); ++i) {
-      for (int a = 0; a < 3; ++a) report->vertex_pixels[tris_[i].vertex[static_cast<size_t>(a)]] += ev.tri_pixels[i];
+      for (int a = 0; a < 3; ++a) {
+        report->vertex_pixels[tris_[i].vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[i];
+      }
     }
   }
 
@@ -617,15 +756,50 @@ class LevelSolver {
     }
     smooth_.resize(row, activeCount());
     smooth_.setFromTriplets(trip.begin(), trip.end());
-    smooth_t_smooth_ = (smooth_.transpose() * smooth_).pruned();
+    smooth_t_smooth_ = smooth_.transpose() * smooth_;
+  }
+
+  /// The fixed sparsity pattern of the height block (triangles, smoothness, diagonal) and where
+  /// each triangle's 3x3 block lives in its value array.
+  void buildPattern() {
+    const int na = activeCount();
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + static_cast<size_t>(smooth_t_smooth_.nonZeros()));
+    for (const auto& t : tris_)
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)], 0.0);
+    for (int a = 0; a < na; ++a) trip.emplace_back(a, a, 0.0);
+    for (int k = 0; k < smooth_t_smooth_.outerSize(); ++k)
+      for (SpMat::InnerIterator it(smooth_t_smooth_, k); it; ++it) trip.emplace_back(it.row(), it.col(), 0.0);
+    hzz_.resize(na, na);
+    hzz_.setFromTriplets(trip.begin(), trip.end());
+    hzz_.makeCompressed();
+    auto index = [this](int r, int c) {
+      const int* begin = hzz_.innerIndexPtr() + hzz_.outerIndexPtr()[c];
+      const int* end = hzz_.innerIndexPtr() + hzz_.outerIndexPtr()[c + 1];
+      const int* it = std::lower_bound(begin, end, r);
+      return static_cast<int>(it - hzz_.innerIndexPtr());
+    };
+    for (auto& t : tris_)
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          t.value_index[static_cast<size_t>(r * 3 + c)] = index(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)]);
+    diag_index_.resize(static_cast<size_t>(na));
+    for (int a = 0; a < na; ++a) diag_index_[static_cast<size_t>(a)] = index(a, a);
+    smooth_values_ = Eigen::VectorXd::Zero(hzz_.nonZeros());
+    for (int k = 0; k < smooth_t_smooth_.outerSize(); ++k)
+      for (SpMat::InnerIterator it(smooth_t_smooth_, k); it; ++it)
+        smooth_values_[index(static_cast<int>(it.row()), static_cast<int>(it.col()))] += it.value();
   }
 
   const SurfaceAlignerOptions& opt_;
   const AlignmentProblem& prob_;
+  Workspace* ws_;
   StereoRig rig_;
   const ImagePyramid::Level* ref_ = nullptr;
   int width_ = 0, height_ = 0;
   double data_scale_ = 1.0;
+  int threads_ = 1;
   std::vector<TriangleGeometry> tris_;
   std::vector<int> active_;   ///< compact index -> fine vertex
   std::vector<int> local_;    ///< fine vertex -> compact index or -1
@@ -635,8 +809,15 @@ class LevelSolver {
   SpMat basis_, basis_t_;     ///< active rows x compact controls
   Eigen::VectorXd mu_;
   SpMat smooth_, smooth_t_smooth_;
+  SpMat hzz_, hcc_;
+  std::vector<int> diag_index_;
+  Eigen::VectorXd smooth_values_;
+  Eigen::SimplicialLDLT<SpMat> chol_;
+  bool analyzed_ = false;
+  Eigen::Index analyzed_nnz_ = 0;
   int global_count_ = 0;
   std::vector<int> photo_index_;
+  std::vector<int> strides_;
 };
 
 double median(std::vector<float> v) {
@@ -672,8 +853,9 @@ SurfaceAligner::SurfaceAligner(const SurfaceAlignerOptions& options) : options_(
 
 AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceState& state) const {
   checkProblem(problem, state);
+  thread_local Workspace ws;
   AlignmentReport report;
-  LevelSolver solver(options_, problem, state);
+  LevelSolver solver(options_, problem, state, &ws);
   report.working_triangles = solver.workingTriangles();
   report.active_vertices = solver.activeCount();
   if (solver.empty()) {
@@ -681,22 +863,22 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
     report.vertex_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
     return report;
   }
-  TriangleRasterizer raster;
-  Evaluation ev, trial_ev;
-  solver.evaluate(state, &ev, &raster);
-  report.initial_cost = ev.total();
+  Evaluation* ev = &ws.eval[0];
+  Evaluation* trial_ev = &ws.eval[1];
+  solver.evaluate(state, ev);
+  report.initial_cost = ev->total();
   SurfaceState trial;
   for (int it = 0; it < options_.max_iterations; ++it) {
     report.iterations = it + 1;
-    const auto step = solver.solve(state, ev, &report);
+    const auto step = solver.solve(state, *ev, &report);
     if (!step.ok) break;
     double alpha = 1.0;
     bool accepted = false;
     double max_dz = 0.0;
     for (int h = 0; h <= options_.max_step_halvings; ++h, alpha *= 0.5) {
       max_dz = solver.apply(step, alpha, state, &trial);
-      solver.evaluate(trial, &trial_ev, &raster);
-      if (trial_ev.total() <= ev.total() * (1.0 + 1e-9)) {
+      solver.evaluate(trial, trial_ev);
+      if (trial_ev->total() <= ev->total() * (1.0 + 1e-9)) {
         accepted = true;
         break;
       }
@@ -717,18 +899,18 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   }
   // ev holds the evaluation at the final state; vertex_information comes from the last
   // linearization (the state before the last accepted step), which differs only to second order.
-  solver.fillPixels(ev, &report);
-  report.final_cost = ev.total();
-  report.data_cost = ev.data_cost;
-  report.smoothness_cost = ev.smoothness_cost;
-  report.prior_cost = ev.prior_cost;
+  solver.fillPixels(*ev, &report);
+  report.final_cost = ev->total();
+  report.data_cost = ev->data_cost;
+  report.smoothness_cost = ev->smoothness_cost;
+  report.prior_cost = ev->prior_cost;
   report.valid_pixels = 0;
   report.outside_pixels = 0;
-  for (const auto& pa : ev.pair) {
+  for (const auto& pa : ev->sums().pair) {
     report.valid_pixels += pa.valid;
     report.outside_pixels += pa.outside;
   }
-  report.median_abs_residual_grey = median(ev.abs_residuals);
+  report.median_abs_residual_grey = median(ev->sums().abs_residuals);
   return report;
 }
 
@@ -737,16 +919,16 @@ cv::Mat SurfaceAligner::renderInverseDepth(const AlignmentProblem& problem, cons
   checkProblem(problem, state);
   SurfaceAlignerOptions o = options_;
   o.estimate_motion = false;
-  TriangleRasterizer raster;
-  Evaluation ev;
+  o.num_threads = 1;
   AlignmentProblem p = problem;
   p.targets.clear();
   SurfaceState s = state;
   s.photometric.clear();
-  LevelSolver bare(o, p, s);
-  bare.evaluate(s, &ev, &raster);
-  if (labels) *labels = raster.labels().clone();
-  return raster.inverseDepth().clone();
+  Workspace ws;
+  LevelSolver bare(o, p, s, &ws);
+  bare.evaluate(s, &ws.eval[0]);
+  if (labels) *labels = ws.raster.labels().clone();
+  return ws.raster.inverseDepth().clone();
 }
 
 }  // namespace stereo_ground_dem

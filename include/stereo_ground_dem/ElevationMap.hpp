@@ -1,0 +1,91 @@
+#pragma once
+/// \file ElevationMap.hpp
+/// The fused DEM: vertex heights on the global ground lattice (see GroundGrid.hpp for the
+/// conventions), stored in square tiles that are created as the vehicle drives and evicted when
+/// they fall farther than `keep_radius_m` from it, so memory stays bounded on drives of any length.
+/// Evicted tiles are dropped or, with an archive directory, written to disk (one binary file per
+/// tile, re-loadable with loadArchive()).
+///
+/// Per vertex the map keeps the height, its information (1 / variance) and the number of frames
+/// that observed it. Fusion is Bayesian: the estimator uses the map as a prior, so its estimate is
+/// already the posterior; fuse() stores it with the prior information plus the frame's data
+/// information (capped at max_information, which keeps the map able to follow a changing scene).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "stereo_ground_dem/GroundGrid.hpp"
+
+namespace stereo_ground_dem {
+
+struct ElevationMapOptions {
+  double resolution_m = 0.5;        ///< lattice spacing [m]
+  int tile_size = 64;               ///< vertices per tile side
+  double keep_radius_m = 200.0;     ///< tiles whose centre is farther from the vehicle are evicted [m]
+  double max_information = 1e6;     ///< cap on a vertex's information [1/m^2] (std >= 1 mm)
+  std::string archive_directory;    ///< empty: evicted tiles are dropped
+
+  bool isValid(std::string* why) const;
+};
+
+class ElevationMap {
+ public:
+  enum class Layer { kElevation, kVariance, kObservations, kLastUpdate };
+
+  explicit ElevationMap(const ElevationMapOptions& options = ElevationMapOptions());
+
+  /// Heights and information of the window's vertices (NaN / 0 where the map knows nothing).
+  void sample(const GroundGrid& window, Eigen::VectorXd* heights, Eigen::VectorXd* information,
+              Eigen::VectorXi* observations = nullptr) const;
+
+  /// Writes the posterior heights of the window's vertices where `update[v]` is set:
+  /// height = heights[v], information = min(max_information, prior_information[v] + data_information[v]).
+  /// `window` must be on the map's lattice (same resolution).
+  void fuse(const GroundGrid& window, const Eigen::VectorXd& heights, const Eigen::VectorXd& prior_information,
+            const Eigen::VectorXd& data_information, const std::vector<uint8_t>& update, int frame_index);
+
+  /// Removes (or archives) the tiles whose centre is farther than keep_radius_m from (x, y).
+  int evictFarFrom(double x, double y);
+
+  /// The bounding grid of every tile in memory (empty grid if none).
+  GroundGrid bounds() const;
+  /// The bounding grid of the vertices that hold data (tighter than bounds()).
+  GroundGrid knownBounds() const;
+  /// A dense layer over `window`: CV_32F rows x cols, NaN where unknown.
+  cv::Mat layer(Layer which, const GroundGrid& window) const;
+
+  /// Loads archived tiles back (e.g. to export the whole drive); returns how many were read.
+  int loadArchive(const std::string& directory);
+
+  void clear();
+  size_t tileCount() const { return tiles_.size(); }
+  size_t memoryBytes() const;
+  int evictedTiles() const { return evicted_; }
+  const ElevationMapOptions& options() const { return options_; }
+
+ private:
+  struct Tile {
+    std::vector<float> height;       ///< NaN = unknown
+    std::vector<float> information;  ///< [1/m^2]
+    std::vector<uint16_t> observations;
+    std::vector<int32_t> last_update;
+  };
+  using Key = std::int64_t;
+  static Key key(int tile_row, int tile_col) {
+    return (static_cast<std::int64_t>(tile_row) << 32) ^ static_cast<std::uint32_t>(tile_col);
+  }
+  Tile* tileFor(int lattice_row, int lattice_col, bool create, int* index);
+  const Tile* tileFor(int lattice_row, int lattice_col, int* index) const;
+  void archive(Key k, const Tile& t) const;
+
+  ElevationMapOptions options_;
+  std::unordered_map<Key, Tile> tiles_;
+  int evicted_ = 0;
+};
+
+}  // namespace stereo_ground_dem

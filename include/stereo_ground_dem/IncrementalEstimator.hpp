@@ -1,0 +1,125 @@
+#pragma once
+/// \file IncrementalEstimator.hpp
+/// Incremental mode (METHOD.md section 6, the paper's section 3): per stereo frame k, with the
+/// current left image L_k as reference and the pairs (L_k, R_k), (L_k, L_k-1), (L_k, R_k-1), jointly
+/// estimate the 6-DoF pose of frame k, the heights of the visible vertices and gain/bias of each
+/// pair, coarse to fine, then fuse the heights into the ElevationMap.
+///
+/// Frame 0 runs the stereo mode, which defines the ground frame. Later frames start from a
+/// constant-velocity prediction (scaled by the time since the last good frame, so dropped frames
+/// are bridged), take known heights from the map (unknown ones by extending the surface with a
+/// plane fitted to the known ones) and use the map as a prior. A frame whose estimate is
+/// implausible is not fused; after `reinit_after_failures` failures in a row the surface is
+/// re-initialised from the stereo pair alone at the predicted pose.
+
+#include <array>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "stereo_ground_dem/ElevationMap.hpp"
+#include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/StereoEstimator.hpp"
+
+namespace stereo_ground_dem {
+
+struct IncrementalEstimatorOptions {
+  StereoEstimatorOptions stereo;          ///< grid, ranges, hierarchy, aligner, start-up
+  ElevationMapOptions map;                ///< its resolution is forced to stereo.grid_resolution_m
+  bool use_map_prior = true;              ///< C_P: tie vertices to their fused map values
+  double prior_weight = 1.0;              ///< scales the map information in C_P [-]
+  int temporal_finest_level = 0;          ///< pyramid levels below this use the stereo pair only
+  int iterations_per_level = 5;           ///< Gauss-Newton iterations per level
+  double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
+  double max_speed_m_per_s = 50.0;        ///< faster estimated motion is implausible
+  double max_turn_rate_rad_per_s = 1.5;   ///< faster rotation is implausible
+  double max_height_jump_m = 0.4;         ///< a well-known vertex moving this far is implausible ...
+  double max_jump_fraction = 0.15;        ///< ... for more than this fraction of them
+  double max_outside_fraction = 0.6;      ///< more samples warped outside the images: failure
+  int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
+  // input sanity (grey levels, 8-bit units)
+  double min_mean_grey = 4.0;             ///< darker images are rejected
+  double max_saturated_fraction = 0.5;    ///< more saturated pixels: rejected
+  double min_std_grey = 2.0;              ///< flatter images are rejected (no texture)
+  double frozen_mean_abs_diff_grey = 0.05;  ///< identical to the previous frame: rejected
+
+  bool isValid(std::string* why) const;
+};
+
+enum class FrameStatus {
+  kInitialized,      ///< stereo mode; defined the ground frame
+  kTracked,          ///< estimated and fused
+  kRecovered,        ///< re-initialised from the stereo pair at the predicted pose, fused
+  kFailed,           ///< estimate implausible: pose predicted, map untouched
+  kRejectedInput,    ///< bad images: nothing estimated, map untouched
+};
+const char* toString(FrameStatus s);
+
+struct FrameResult {
+  FrameStatus status = FrameStatus::kRejectedInput;
+  std::string message;                 ///< reason for a failure or rejection
+  int frame_index = -1;                ///< index of this call (counts every frame)
+  double stamp_s = 0.0;
+  Eigen::Isometry3d ground_T_camera = Eigen::Isometry3d::Identity();   ///< left camera in G
+  Eigen::Isometry3d camera0_T_camera = Eigen::Isometry3d::Identity();  ///< KITTI convention
+  std::array<PhotometricParams, 3> photometric;  ///< (L_k,R_k), (L_k,L_k-1), (L_k,R_k-1)
+  GroundGrid window;                   ///< the local grid estimated this frame
+  double time_ms = 0.0;
+  double median_abs_residual_grey = 0.0;
+  int valid_pixels = 0;
+  int fused_vertices = 0;
+  Matrix6d motion_information = Matrix6d::Zero();  ///< [1/m^2, 1/rad^2], twist (v, w) in camera
+};
+
+class IncrementalEstimator {
+ public:
+  IncrementalEstimator(const StereoRig& rig, const IncrementalEstimatorOptions& options);
+
+  /// Processes one stereo frame (any image type ImagePyramid accepts); stamps in seconds.
+  FrameResult processFrame(const cv::Mat& left, const cv::Mat& right, double stamp_s,
+                           ImagePyramid::ColorOrder order = ImagePyramid::ColorOrder::kBgr);
+
+  bool initialized() const { return initialized_; }
+  const ElevationMap& map() const { return map_; }
+  ElevationMap& map() { return map_; }
+  const Eigen::Isometry3d& groundTCamera0() const { return ground_T_camera0_; }
+  const Eigen::Isometry3d& lastGroundTCamera() const { return ground_T_camera_; }
+  int failures() const { return failures_total_; }
+  int recoveries() const { return recoveries_; }
+  int rejectedInputs() const { return rejected_total_; }
+  const StereoRig& rig() const { return rig_; }
+  const IncrementalEstimatorOptions& options() const { return options_; }
+  /// Forgets everything (map, ground frame, trajectory).
+  void reset();
+
+  /// The window of the lattice covering the camera's working range from camera_T_ground.
+  GroundGrid viewWindow(const Eigen::Isometry3d& camera_T_ground) const;
+
+ private:
+  std::string checkImages(const ImagePyramid& left, const ImagePyramid& right) const;
+  void initialHeights(const GroundGrid& window, const Eigen::Isometry3d& camera_T_ground,
+                      Eigen::VectorXd* heights, Eigen::VectorXd* information) const;
+  PhotometricParams statsPhotometric(const ImagePyramid& ref, const ImagePyramid& other,
+                                     const Eigen::Isometry3d& camera_T_ground) const;
+  Eigen::Isometry3d predict(double stamp_s) const;
+
+  StereoRig rig_;
+  IncrementalEstimatorOptions options_;
+  StereoEstimator stereo_;
+  ElevationMap map_;
+  bool initialized_ = false;
+  Eigen::Isometry3d ground_T_camera0_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d ground_T_camera_ = Eigen::Isometry3d::Identity();  ///< last good frame
+  Vector6d velocity_ = Vector6d::Zero();  ///< twist per second, camera frame (left-multiplied)
+  double last_good_stamp_ = 0.0;
+  std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
+  cv::Mat last_left_level0_;   ///< for the frozen-frame test
+  std::array<PhotometricParams, 3> last_photometric_;
+  int frame_counter_ = 0;
+  int consecutive_failures_ = 0;
+  int failures_total_ = 0;
+  int recoveries_ = 0;
+  int rejected_total_ = 0;
+};
+
+}  // namespace stereo_ground_dem

@@ -1,0 +1,384 @@
+#include "stereo_ground_dem/IncrementalEstimator.hpp"
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+const char* toString(FrameStatus s) {
+  switch (s) {
+    case FrameStatus::kInitialized: return "initialized";
+    case FrameStatus::kTracked: return "tracked";
+    case FrameStatus::kRecovered: return "recovered";
+    case FrameStatus::kFailed: return "failed";
+    case FrameStatus::kRejectedInput: return "rejected_input";
+  }
+  return "?";
+}
+
+bool IncrementalEstimatorOptions::isValid(std::string* why) const {
+  auto bad = [why](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  std::string w;
+  if (!stereo.isValid(&w)) return bad("stereo: " + w);
+  ElevationMapOptions m = map;
+  m.resolution_m = stereo.grid_resolution_m;
+  if (!m.isValid(&w)) return bad("map: " + w);
+  if (!(prior_weight >= 0.0)) return bad("prior_weight must be >= 0");
+  if (temporal_finest_level < 0 || temporal_finest_level >= stereo.mesh_levels) {
+    return bad("temporal_finest_level must be in 0..mesh_levels-1");
+  }
+  if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
+  if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
+  if (!(max_speed_m_per_s > 0.0) || !(max_turn_rate_rad_per_s > 0.0)) return bad("motion limits must be > 0");
+  if (!(max_height_jump_m > 0.0) || !(max_jump_fraction > 0.0)) return bad("height-jump limits must be > 0");
+  if (!(max_outside_fraction > 0.0 && max_outside_fraction <= 1.0)) return bad("max_outside_fraction must be in (0, 1]");
+  if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
+  return true;
+}
+
+namespace {
+ElevationMapOptions mapOptions(const IncrementalEstimatorOptions& o) {
+  ElevationMapOptions m = o.map;
+  m.resolution_m = o.stereo.grid_resolution_m;
+  return m;
+}
+const IncrementalEstimatorOptions& validated(const IncrementalEstimatorOptions& o) {
+  std::string why;
+  if (!o.isValid(&why)) throw std::invalid_argument("IncrementalEstimatorOptions: " + why);
+  return o;
+}
+Eigen::Isometry3d rigTransform(const StereoRig& rig) {
+  return Eigen::Translation3d(-rig.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
+}
+}  // namespace
+
+IncrementalEstimator::IncrementalEstimator(const StereoRig& rig, const IncrementalEstimatorOptions& options)
+    : rig_(rig), options_(validated(options)), stereo_(rig, options.stereo), map_(mapOptions(options)) {}
+
+void IncrementalEstimator::reset() {
+  map_.clear();
+  initialized_ = false;
+  velocity_.setZero();
+  prev_left_.reset();
+  prev_right_.reset();
+  last_left_level0_.release();
+  consecutive_failures_ = 0;
+}
+
+std::string IncrementalEstimator::checkImages(const ImagePyramid& left, const ImagePyramid& right) const {
+  const IncrementalEstimatorOptions& o = options_;
+  const char* names[2] = {"left", "right"};
+  const ImagePyramid* p[2] = {&left, &right};
+  for (int i = 0; i < 2; ++i) {
+    const cv::Mat& img = p[i]->level(0).image;
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(img, mean, stddev);
+    std::ostringstream os;
+    if (mean[0] < o.min_mean_grey) {
+      os << names[i] << " image is black (mean " << mean[0] << " grey levels)";
+      return os.str();
+    }
+    const double sat = cv::countNonZero(img >= static_cast<float>(o.stereo.aligner.saturated_level_grey)) /
+                       static_cast<double>(img.total());
+    if (sat > o.max_saturated_fraction) {
+      os << names[i] << " image is saturated (" << static_cast<int>(100 * sat) << "% of pixels)";
+      return os.str();
+    }
+    if (stddev[0] < o.min_std_grey) {
+      os << names[i] << " image has no texture (standard deviation " << stddev[0] << " grey levels)";
+      return os.str();
+    }
+  }
+  if (!last_left_level0_.empty() && last_left_level0_.size() == left.level(0).image.size()) {
+    cv::Mat diff;
+    cv::absdiff(left.level(0).image, last_left_level0_, diff);
+    if (cv::mean(diff)[0] < o.frozen_mean_abs_diff_grey) return "left image is identical to the previous one (frozen camera)";
+  }
+  return {};
+}
+
+GroundGrid IncrementalEstimator::viewWindow(const Eigen::Isometry3d& camera_T_ground) const {
+  const StereoEstimatorOptions& s = options_.stereo;
+  const Eigen::Isometry3d g_T_c = camera_T_ground.inverse();
+  const double half_w = std::max(rig_.cx, rig_.width - 1 - rig_.cx) / rig_.fx;
+  double xmin = 1e30, xmax = -1e30, ymin = 1e30, ymax = -1e30;
+  for (double z : {s.min_range_m, s.max_range_m}) {
+    const double lat = std::min(s.max_lateral_m, z * half_w);
+    for (double x : {-lat, 0.0, lat}) {
+      for (double y : {0.0, s.nominal_height_m}) {
+        const Eigen::Vector3d g = g_T_c * Eigen::Vector3d(x, y, z);
+        xmin = std::min(xmin, g.x());
+        xmax = std::max(xmax, g.x());
+        ymin = std::min(ymin, g.y());
+        ymax = std::max(ymax, g.y());
+      }
+    }
+  }
+  const double margin = 2.0;
+  return GroundGrid::covering(xmin - margin, xmax + margin, ymin - margin, ymax + margin, s.grid_resolution_m,
+                              1 << (s.mesh_levels - 1));
+}
+
+void IncrementalEstimator::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camera_T_ground,
+                                          Eigen::VectorXd* heights, Eigen::VectorXd* information) const {
+  map_.sample(w, heights, information);
+  // Extend the surface: a plane fitted to the known heights (weighted by information), or the
+  // level plane under the camera when too little is known.
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  int known = 0;
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    if (!std::isfinite((*heights)[v])) continue;
+    const Eigen::Vector2d xy = w.position(v);
+    const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
+    const double wt = std::min((*information)[v], 1e4) + 1.0;
+    ata += wt * a * a.transpose();
+    atb += wt * a * (*heights)[v];
+    ++known;
+  }
+  Eigen::Vector3d pqc;
+  const Eigen::Vector3d cam = camera_T_ground.inverse().translation();
+  if (known >= 20 && ata.determinant() > 1e-9 * std::pow(ata.trace(), 3)) {
+    pqc = ata.ldlt().solve(atb);
+  } else {
+    pqc = Eigen::Vector3d(0.0, 0.0, cam.z() - options_.stereo.nominal_height_m);
+  }
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    if (std::isfinite((*heights)[v])) continue;
+    const Eigen::Vector2d xy = w.position(v);
+    (*heights)[v] = pqc.x() * xy.x() + pqc.y() * xy.y() + pqc.z();
+  }
+}
+
+PhotometricParams IncrementalEstimator::statsPhotometric(const ImagePyramid& ref, const ImagePyramid& other,
+                                                         const Eigen::Isometry3d& camera_T_ground) const {
+  return stereo_.initialPhotometric(ref, other, camera_T_ground);
+}
+
+Eigen::Isometry3d IncrementalEstimator::predict(double stamp_s) const {
+  double dt = stamp_s - last_good_stamp_;
+  if (!(dt > 0.0)) dt = options_.nominal_frame_period_s;
+  return Se3::exp(velocity_ * dt) * ground_T_camera_.inverse();
+}
+
+FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Mat& right, double stamp_s,
+                                               ImagePyramid::ColorOrder order) {
+  const auto t0 = std::chrono::steady_clock::now();
+  FrameResult res;
+  res.frame_index = frame_counter_++;
+  res.stamp_s = stamp_s;
+  auto finish = [&](FrameResult& r) -> FrameResult {
+    r.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    r.camera0_T_camera = ground_T_camera0_.inverse() * r.ground_T_camera;
+    return r;
+  };
+  auto reject = [&](const std::string& why) -> FrameResult {
+    res.status = FrameStatus::kRejectedInput;
+    res.message = why;
+    res.ground_T_camera = initialized_ ? predict(stamp_s).inverse() : Eigen::Isometry3d::Identity();
+    ++rejected_total_;
+    return finish(res);
+  };
+  if (left.empty() || right.empty()) return reject("empty image");
+  if (left.size() != right.size()) {
+    std::ostringstream os;
+    os << "left and right images differ in size (" << left.cols << "x" << left.rows << " vs " << right.cols << "x"
+       << right.rows << ")";
+    return reject(os.str());
+  }
+  if ((rig_.width > 0 && left.cols != rig_.width) || (rig_.height > 0 && left.rows != rig_.height)) {
+    std::ostringstream os;
+    os << "image size " << left.cols << "x" << left.rows << " does not match the calibration (" << rig_.width << "x"
+       << rig_.height << ")";
+    return reject(os.str());
+  }
+  if (!std::isfinite(stamp_s)) return reject("time stamp is not finite");
+  if (initialized_ && stamp_s < last_good_stamp_) return reject("time stamp goes backwards");
+  std::unique_ptr<ImagePyramid> pl, pr;
+  try {
+    pl = std::make_unique<ImagePyramid>(stereo_.makePyramid(left, order));
+    pr = std::make_unique<ImagePyramid>(stereo_.makePyramid(right, order));
+  } catch (const std::invalid_argument& e) {
+    return reject(e.what());
+  }
+  const std::string bad = checkImages(*pl, *pr);
+  if (!bad.empty()) return reject(bad);
+  last_left_level0_ = pl->level(0).image;
+
+  if (!initialized_) {
+    const StereoResult sr = stereo_.estimate(*pl, *pr);
+    if (!sr.ok) {
+      res.status = FrameStatus::kFailed;
+      res.message = "initialization (stereo mode): " + sr.message;
+      ++failures_total_;
+      return finish(res);
+    }
+    ground_T_camera0_ = sr.ground_T_camera;
+    ground_T_camera_ = sr.ground_T_camera;
+    std::vector<uint8_t> update(static_cast<size_t>(sr.grid.vertexCount()));
+    for (int v = 0; v < sr.grid.vertexCount(); ++v) update[static_cast<size_t>(v)] = std::isfinite(sr.heights[v]);
+    map_.fuse(sr.grid, sr.heights, Eigen::VectorXd::Zero(sr.grid.vertexCount()), sr.information, update, res.frame_index);
+    res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
+    initialized_ = true;
+    velocity_.setZero();
+    last_good_stamp_ = stamp_s;
+    prev_left_ = std::move(pl);
+    prev_right_ = std::move(pr);
+    last_photometric_ = {sr.photometric, PhotometricParams(), PhotometricParams()};
+    res.status = FrameStatus::kInitialized;
+    res.ground_T_camera = sr.ground_T_camera;
+    res.photometric = last_photometric_;
+    res.window = sr.grid;
+    res.median_abs_residual_grey = sr.median_abs_residual_grey;
+    return finish(res);
+  }
+
+  // ---- incremental step
+  const StereoEstimatorOptions& so = options_.stereo;
+  const Eigen::Isometry3d predicted = predict(stamp_s);  // camera_T_ground
+  const GroundGrid window = viewWindow(predicted);
+  res.window = window;
+  Eigen::VectorXd heights, info;
+  initialHeights(window, predicted, &heights, &info);
+  HeightPrior prior;
+  prior.mean = heights;
+  prior.information = info * options_.prior_weight;
+
+  const bool recover = consecutive_failures_ >= options_.reinit_after_failures;
+  SurfaceState state;
+  state.camera_T_ground = predicted;
+  state.heights = heights;
+  const Eigen::Isometry3d prev_c_T_g = ground_T_camera_.inverse();
+  state.photometric = {statsPhotometric(*pl, *pr, predicted), statsPhotometric(*pl, *prev_left_, predicted),
+                       statsPhotometric(*pl, *prev_right_, predicted)};
+  AlignerTarget stereo_t;
+  stereo_t.pyramid = pr.get();
+  stereo_t.rig_fixed = true;
+  stereo_t.target_T_reference = rigTransform(rig_);
+  AlignerTarget prev_l;
+  prev_l.pyramid = prev_left_.get();
+  prev_l.rig_fixed = false;
+  prev_l.target_T_ground = prev_c_T_g;
+  AlignerTarget prev_r = prev_l;
+  prev_r.pyramid = prev_right_.get();
+  prev_r.target_T_ground = rigTransform(rig_) * prev_c_T_g;
+
+  SurfaceAlignerOptions ao = so.aligner;
+  ao.min_depth_m = so.min_range_m;
+  ao.max_depth_m = so.max_range_m;
+  ao.max_lateral_m = so.max_lateral_m;
+  ao.max_iterations = options_.iterations_per_level;
+  SurfaceAlignerOptions ao_motion = ao;
+  ao_motion.estimate_motion = !recover;
+  const SurfaceAligner aligner_static(ao), aligner_motion(ao_motion);
+
+  AlignmentProblem prob;
+  prob.reference = pl.get();
+  prob.rig = &rig_;
+  prob.grid = &window;
+  prob.prior = (options_.use_map_prior && !recover) ? &prior : nullptr;
+  AlignmentReport last;
+  for (int l = so.mesh_levels - 1; l >= 0; --l) {
+    prob.level = l;
+    const bool temporal = !recover && l >= options_.temporal_finest_level;
+    // The photometric state is per target; keep the three slots and pass the used subset.
+    SurfaceState level_state = state;
+    if (temporal) {
+      prob.targets = {stereo_t, prev_l, prev_r};
+    } else {
+      prob.targets = {stereo_t};
+      level_state.photometric = {state.photometric[0]};
+    }
+    Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
+    stereo_.levelBasis(window, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
+    prob.basis = basis.size() > 0 ? &basis : nullptr;
+    last = (temporal ? aligner_motion : aligner_static).align(prob, level_state);
+    state.camera_T_ground = level_state.camera_T_ground;
+    state.heights = level_state.heights;
+    state.photometric[0] = level_state.photometric[0];
+    if (temporal) {
+      state.photometric[1] = level_state.photometric[1];
+      state.photometric[2] = level_state.photometric[2];
+    }
+    if (last.degenerate) break;
+  }
+  std::copy_n(state.photometric.begin(), 3, res.photometric.begin());
+  res.median_abs_residual_grey = last.median_abs_residual_grey;
+  res.valid_pixels = last.valid_pixels;
+  res.motion_information = last.motion_information;
+
+  // ---- plausibility
+  std::string failure;
+  double dt = stamp_s - last_good_stamp_;
+  if (!(dt > 0.0)) dt = options_.nominal_frame_period_s;
+  const Vector6d step = Se3::log(state.camera_T_ground * ground_T_camera_);  // prev camera -> current
+  const int samples = last.valid_pixels + last.outside_pixels;
+  std::vector<uint8_t> update(static_cast<size_t>(window.vertexCount()), 0);
+  int jumps = 0, well_known = 0;
+  for (int v = 0; v < window.vertexCount(); ++v) {
+    if (last.vertex_pixels.size() == 0 || last.vertex_pixels[v] == 0 || !std::isfinite(state.heights[v])) continue;
+    update[static_cast<size_t>(v)] = 1;
+    if (info[v] > 1e3) {  // std below ~3 cm
+      ++well_known;
+      if (std::abs(state.heights[v] - prior.mean[v]) > options_.max_height_jump_m) ++jumps;
+    }
+  }
+  std::ostringstream why;
+  if (last.degenerate) {
+    why << "normal equations degenerate";
+  } else if (!state.camera_T_ground.matrix().allFinite() || !state.heights.allFinite()) {
+    why << "estimate is not finite";
+  } else if (step.head<3>().norm() / dt > options_.max_speed_m_per_s) {
+    why << "implausible motion: " << step.head<3>().norm() / dt << " m/s";
+  } else if (step.tail<3>().norm() / dt > options_.max_turn_rate_rad_per_s) {
+    why << "implausible rotation: " << step.tail<3>().norm() / dt << " rad/s";
+  } else if (samples == 0 || last.outside_pixels > options_.max_outside_fraction * samples) {
+    why << "too few pixels overlap between the images (" << last.outside_pixels << " of " << samples
+        << " samples outside)";
+  } else if (well_known > 20 && jumps > options_.max_jump_fraction * well_known) {
+    why << jumps << " of " << well_known << " well-known vertices moved more than " << options_.max_height_jump_m
+        << " m";
+  }
+  failure = why.str();
+  if (!failure.empty()) {
+    ++consecutive_failures_;
+    ++failures_total_;
+    res.status = FrameStatus::kFailed;
+    res.message = failure;
+    res.ground_T_camera = predicted.inverse();
+    return finish(res);
+  }
+
+  // ---- fuse, advance
+  Eigen::VectorXd fused_prior_info = prob.prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
+  map_.fuse(window, state.heights, fused_prior_info, last.vertex_information, update, res.frame_index);
+  res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
+  const Eigen::Isometry3d new_g_T_c = state.camera_T_ground.inverse();
+  if (!recover) {
+    velocity_ = Se3::log(state.camera_T_ground * ground_T_camera_) / dt;
+  }
+  ground_T_camera_ = new_g_T_c;
+  last_good_stamp_ = stamp_s;
+  prev_left_ = std::move(pl);
+  prev_right_ = std::move(pr);
+  std::copy_n(state.photometric.begin(), 3, last_photometric_.begin());
+  res.status = recover ? FrameStatus::kRecovered : FrameStatus::kTracked;
+  if (recover) {
+    ++recoveries_;
+    res.message = "re-initialized from the stereo pair after " + std::to_string(consecutive_failures_) + " failures";
+  }
+  consecutive_failures_ = 0;
+  res.ground_T_camera = new_g_T_c;
+  const Eigen::Vector3d pos = new_g_T_c.translation();
+  map_.evictFarFrom(pos.x(), pos.y());
+  return finish(res);
+}
+
+}  // namespace stereo_ground_dem
