@@ -12,6 +12,7 @@
 
 #include "stereo_ground_dem/GroundGrid.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/ObstacleDetector.hpp"
 #include "stereo_ground_dem/PhotometricParams.hpp"
 #include "stereo_ground_dem/StereoRig.hpp"
 #include "stereo_ground_dem/SurfaceAligner.hpp"
@@ -38,6 +39,7 @@ struct StereoEstimatorOptions {
   double presmooth_sigma_px = 0.8;      ///< Gaussian blur of level 0 (see ImagePyramid)
   int iterations_per_level = 8;
   SurfaceAlignerOptions aligner;        ///< its depth range is overridden by the fields above
+  ObstacleDetectorOptions obstacles;    ///< occlusion reasoning; camera_height_m follows nominal_height_m
 
   bool isValid(std::string* why) const;
 };
@@ -53,6 +55,7 @@ struct StereoResult {
   PhotometricParams photometric;       ///< left = gain * right + bias
   std::vector<AlignmentReport> reports;  ///< plane fit levels, then mesh levels
   double median_abs_residual_grey = 0.0;
+  ObstacleMask obstacles;                ///< pixels excluded from the ground data term
 };
 
 class StereoEstimator {
@@ -91,6 +94,12 @@ class StereoEstimator {
   void levelBasis(const GroundGrid& fine, int level, const Eigen::VectorXd& heights,
                   const Eigen::Isometry3d& camera_T_ground,
                   Eigen::SparseMatrix<double, Eigen::RowMajor>* basis, Eigen::VectorXd* weights) const;
+
+  /// Occlusion reasoning: the pixels of `left` that see obstacles above the surface
+  /// (`heights` on `grid`, seen from camera_T_ground).
+  ObstacleMask detectObstacles(const ImagePyramid& left, const ImagePyramid& right, const GroundGrid& grid,
+                               const Eigen::VectorXd& heights, const Eigen::Isometry3d& camera_T_ground,
+                               const PhotometricParams& photometric) const;
 
   /// Builds the pyramid the estimators use for an input image.
   ImagePyramid makePyramid(const cv::Mat& image,

@@ -91,6 +91,9 @@ struct AlignmentProblem {
   /// Optional per-vertex mask (fine grid, 1 = may be used); empty: all vertices may be used.
   std::vector<uint8_t> vertex_mask;
   bool estimate_heights = true;
+  /// Optional per pyramid level: reference pixels not to use (CV_8U, nonzero = excluded), e.g.
+  /// obstacles found by the ObstacleDetector.
+  const std::vector<cv::Mat>* excluded = nullptr;
 };
 
 struct AlignmentReport {

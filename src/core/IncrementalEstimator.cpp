@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -40,6 +41,9 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!(max_height_jump_m > 0.0) || !(max_jump_fraction > 0.0)) return bad("height-jump limits must be > 0");
   if (!(max_outside_fraction > 0.0 && max_outside_fraction <= 1.0)) return bad("max_outside_fraction must be in (0, 1]");
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
+  if (!(motion_search_step_m > 0.0) || !(motion_search_max_m >= motion_search_min_m)) {
+    return bad("need motion_search_step_m > 0 and motion_search_max_m >= motion_search_min_m");
+  }
   return true;
 }
 
@@ -66,6 +70,7 @@ void IncrementalEstimator::reset() {
   map_.clear();
   initialized_ = false;
   velocity_.setZero();
+  velocity_known_ = false;
   prev_left_.reset();
   prev_right_.reset();
   last_left_level0_.release();
@@ -162,6 +167,50 @@ PhotometricParams IncrementalEstimator::statsPhotometric(const ImagePyramid& ref
   return stereo_.initialPhotometric(ref, other, camera_T_ground);
 }
 
+Eigen::Isometry3d IncrementalEstimator::searchForwardMotion(const ImagePyramid& left, const GroundGrid& window,
+                                                            const Eigen::VectorXd& heights,
+                                                            const Eigen::Isometry3d& predicted, double dt) const {
+  const StereoEstimatorOptions& so = options_.stereo;
+  SurfaceAlignerOptions ao = so.aligner;
+  ao.min_depth_m = so.min_range_m;
+  ao.max_depth_m = so.max_range_m;
+  ao.max_lateral_m = so.max_lateral_m;
+  ao.max_iterations = 0;  // cost only
+  ao.estimate_motion = false;
+  const SurfaceAligner aligner(ao);
+  AlignerTarget prev;
+  prev.pyramid = prev_left_.get();
+  prev.rig_fixed = false;
+  prev.target_T_ground = ground_T_camera_.inverse();
+  prev.estimate_photometric = false;
+  AlignmentProblem prob;
+  prob.reference = &left;
+  prob.rig = &rig_;
+  prob.grid = &window;
+  prob.level = std::min(so.mesh_levels - 1, left.levels() - 1);
+  prob.targets = {prev};
+  prob.estimate_heights = false;
+  const double scale = dt / options_.nominal_frame_period_s;
+  Eigen::Isometry3d best = predicted;
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (double t = options_.motion_search_min_m; t <= options_.motion_search_max_m + 1e-9;
+       t += options_.motion_search_step_m) {
+    SurfaceState s;
+    s.camera_T_ground = Eigen::Translation3d(0.0, 0.0, -t * scale) * predicted;
+    s.heights = heights;
+    s.photometric = {statsPhotometric(left, *prev_left_, s.camera_T_ground)};
+    const AlignmentReport rep = aligner.align(prob, s);
+    const int samples = rep.valid_pixels + rep.outside_pixels;
+    if (samples == 0) continue;
+    const double cost = rep.initial_cost / samples;  // per sample: comparable across overlaps
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = s.camera_T_ground;
+    }
+  }
+  return best;
+}
+
 Eigen::Isometry3d IncrementalEstimator::predict(double stamp_s) const {
   double dt = stamp_s - last_good_stamp_;
   if (!(dt > 0.0)) dt = options_.nominal_frame_period_s;
@@ -228,6 +277,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
     initialized_ = true;
     velocity_.setZero();
+    velocity_known_ = false;
     last_good_stamp_ = stamp_s;
     prev_left_ = std::move(pl);
     prev_right_ = std::move(pr);
@@ -242,11 +292,18 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
 
   // ---- incremental step
   const StereoEstimatorOptions& so = options_.stereo;
-  const Eigen::Isometry3d predicted = predict(stamp_s);  // camera_T_ground
-  const GroundGrid window = viewWindow(predicted);
-  res.window = window;
+  Eigen::Isometry3d predicted = predict(stamp_s);  // camera_T_ground
+  double dt_pred = stamp_s - last_good_stamp_;
+  if (!(dt_pred > 0.0)) dt_pred = options_.nominal_frame_period_s;
+  GroundGrid window = viewWindow(predicted);
   Eigen::VectorXd heights, info;
   initialHeights(window, predicted, &heights, &info);
+  if (!velocity_known_) {
+    predicted = searchForwardMotion(*pl, window, heights, predicted, dt_pred);
+    window = viewWindow(predicted);
+    initialHeights(window, predicted, &heights, &info);
+  }
+  res.window = window;
   HeightPrior prior;
   prior.mean = heights;
   prior.information = info * options_.prior_weight;
@@ -279,11 +336,14 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   ao_motion.estimate_motion = !recover;
   const SurfaceAligner aligner_static(ao), aligner_motion(ao_motion);
 
+  const ObstacleMask obstacles =
+      stereo_.detectObstacles(*pl, *pr, window, heights, predicted, state.photometric[0]);
   AlignmentProblem prob;
   prob.reference = pl.get();
   prob.rig = &rig_;
   prob.grid = &window;
   prob.prior = (options_.use_map_prior && !recover) ? &prior : nullptr;
+  prob.excluded = &obstacles.excluded;
   AlignmentReport last;
   for (int l = so.mesh_levels - 1; l >= 0; --l) {
     prob.level = l;
@@ -350,6 +410,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   if (!failure.empty()) {
     ++consecutive_failures_;
     ++failures_total_;
+    velocity_known_ = false;
     res.status = FrameStatus::kFailed;
     res.message = failure;
     res.ground_T_camera = predicted.inverse();
@@ -363,6 +424,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   const Eigen::Isometry3d new_g_T_c = state.camera_T_ground.inverse();
   if (!recover) {
     velocity_ = Se3::log(state.camera_T_ground * ground_T_camera_) / dt;
+    velocity_known_ = true;
   }
   ground_T_camera_ = new_g_T_c;
   last_good_stamp_ = stamp_s;

@@ -30,6 +30,7 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
   if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
   std::string w;
   if (!aligner.isValid(&w)) return bad("aligner: " + w);
+  if (!obstacles.isValid(&w)) return bad("obstacles: " + w);
   return true;
 }
 
@@ -259,11 +260,13 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   target.pyramid = &right;
   target.rig_fixed = true;
   target.target_T_reference = Eigen::Translation3d(-rig_.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
+  res.obstacles = detectObstacles(left, right, res.grid, state.heights, state.camera_T_ground, res.photometric);
   AlignmentProblem prob;
   prob.reference = &left;
   prob.rig = &rig_;
   prob.grid = &res.grid;
   prob.targets = {target};
+  prob.excluded = &res.obstacles.excluded;
   AlignmentReport last;
   for (int l = top; l >= 0; --l) {
     prob.level = l;
@@ -287,6 +290,31 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   res.median_abs_residual_grey = last.median_abs_residual_grey;
   res.ok = true;
   return res;
+}
+
+ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const ImagePyramid& right,
+                                              const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                              const Eigen::Isometry3d& camera_T_ground,
+                                              const PhotometricParams& photometric) const {
+  ObstacleDetectorOptions oo = options_.obstacles;
+  oo.camera_height_m = std::max(options_.nominal_height_m, oo.min_obstacle_height_m + 0.1);
+  oo.level = std::min(oo.level, left.levels() - 1);
+  const ObstacleDetector detector(oo);
+  SurfaceAlignerOptions ao = options_.aligner;
+  ao.min_depth_m = options_.min_range_m;
+  ao.max_depth_m = options_.max_range_m;
+  ao.max_lateral_m = options_.max_lateral_m;
+  const SurfaceAligner aligner(ao);
+  AlignmentProblem prob;
+  prob.reference = &left;
+  prob.rig = &rig_;
+  prob.grid = &grid;
+  prob.level = oo.level;
+  SurfaceState state;
+  state.camera_T_ground = camera_T_ground;
+  state.heights = heights;
+  const cv::Mat rho = aligner.renderInverseDepth(prob, state);
+  return detector.detect(left, right, rig_, photometric, rho);
 }
 
 cv::Mat StereoEstimator::impliedDisparity(const StereoResult& result, const ImagePyramid& left) const {

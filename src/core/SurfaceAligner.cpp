@@ -152,6 +152,12 @@ class LevelSolver {
     ref_ = &p.reference->level(p.level);
     width_ = ref_->image.cols;
     height_ = ref_->image.rows;
+    if (p.excluded && static_cast<int>(p.excluded->size()) > p.level) {
+      excluded_ = &(*p.excluded)[static_cast<size_t>(p.level)];
+      if (excluded_->size() != ref_->image.size() || excluded_->type() != CV_8U) {
+        throw std::invalid_argument("SurfaceAligner: excluded mask does not match the pyramid level");
+      }
+    }
     data_scale_ = std::ldexp(1.0, 2 * p.level) / (o.image_noise_std_grey * o.image_noise_std_grey);
     selectWorkingSet(g, s);
     buildBasis();
@@ -329,13 +335,14 @@ class LevelSolver {
       const float* i0row = ref_->image.ptr<float>(v);
       const float* gurow = ref_->grad_u.ptr<float>(v);
       const float* gvrow = ref_->grad_v.ptr<float>(v);
+      const uint8_t* exrow = excluded_ ? excluded_->ptr<uint8_t>(v) : nullptr;
       const float y = (static_cast<float>(v) - cy) / fy;
       const float vf = static_cast<float>(v);
       for (int u = b; u <= e_col; ++u) {
         const int ti = lab[u];
         if (ti < 0) continue;
         const float i0 = i0row[u];
-        if (i0 <= dark || i0 >= sat) continue;
+        if (i0 <= dark || i0 >= sat || (exrow && exrow[u])) continue;
         ch->tri_pixels[static_cast<size_t>(ti)]++;
         const float x = (static_cast<float>(u) - cx) / fx;
         const float uf = static_cast<float>(u);
@@ -797,6 +804,7 @@ class LevelSolver {
   Workspace* ws_;
   StereoRig rig_;
   const ImagePyramid::Level* ref_ = nullptr;
+  const cv::Mat* excluded_ = nullptr;
   int width_ = 0, height_ = 0;
   double data_scale_ = 1.0;
   int threads_ = 1;

@@ -1,0 +1,71 @@
+#pragma once
+/// \file ObstacleDetector.hpp
+/// Occlusion reasoning for the ground estimators: which reference pixels see something standing on
+/// the ground (a car, a pole, a wall, a pedestrian) rather than the ground itself.
+///
+/// Each pixel is explained by one of two surface models, compared photometrically over a small
+/// window between the left and the right image of the current frame:
+///  - the ground: the current estimate of the ground mesh (a slanted surface: its disparity grows
+///    by baseline/camera-height pixels per image row);
+///  - an upright obstacle: a fronto-parallel surface (constant disparity over the window) closer to
+///    the camera than the ground seen through the pixel by at least `min_obstacle_height_m` worth
+///    of disparity.
+/// A pixel goes to the obstacle when the best upright surface explains its window clearly better
+/// than the ground does. The ground model is a family: the mesh's surface raised or lowered by up
+/// to `ground_band_m` (each a slanted window), so raised ground (a curb top, a terrace above a
+/// step, a verge) is explained as ground before the mesh has risen to it; the test is about the
+/// orientation of the surface (slanted like the ground, or upright) more than about its height.
+/// Excluded pixels take no part in the ground data term (so the mesh cannot climb onto the
+/// obstacle and ground hidden behind it stays unobserved); their disparity gives the obstacle's
+/// position and height for the obstacle layer.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/PhotometricParams.hpp"
+#include "stereo_ground_dem/StereoRig.hpp"
+
+namespace stereo_ground_dem {
+
+struct ObstacleDetectorOptions {
+  bool enabled = true;
+  int level = 1;                       ///< pyramid level of the test
+  int window_width_px = 5;             ///< window at that level [px]
+  int window_height_px = 9;            ///< [px]; taller than wide: the slant of the ground shows
+  double min_obstacle_height_m = 0.25; ///< upright surfaces must stand at least this high
+  double camera_height_m = 1.65;       ///< nominal camera height, converts the above to disparity
+  double margin_px = 0.5;              ///< extra disparity margin at the test level [px]
+  double cost_ratio = 0.7;             ///< obstacle if its cost < ratio * ground cost
+  double min_ground_cost_grey = 3.0;   ///< mean |residual| of the ground below this: ground [grey]
+  double min_range_m = 2.0;            ///< nearest obstacle searched [m]
+  double ground_band_m = 0.4;          ///< ground raised/lowered by up to this is still ground [m]
+  int dilation_px = 1;                 ///< grow the mask at the test level [px]
+
+  bool isValid(std::string* why) const;
+};
+
+struct ObstacleMask {
+  std::vector<cv::Mat> excluded;  ///< per pyramid level, CV_8U, 255 = obstacle pixel
+  cv::Mat disparity;              ///< at the test level: obstacle disparity in level-0 pixels, 0 = none
+  int level = 0;                  ///< the test level
+  int pixels = 0;                 ///< obstacle pixels at the test level
+};
+
+class ObstacleDetector {
+ public:
+  explicit ObstacleDetector(const ObstacleDetectorOptions& options);
+
+  /// `ground_inverse_depth` is the current ground surface's inverse depth [1/m] at the test level
+  /// (0 where there is no surface); `photometric` relates left = gain * right + bias.
+  ObstacleMask detect(const ImagePyramid& left, const ImagePyramid& right, const StereoRig& rig,
+                      const PhotometricParams& photometric, const cv::Mat& ground_inverse_depth) const;
+
+  const ObstacleDetectorOptions& options() const { return options_; }
+
+ private:
+  ObstacleDetectorOptions options_;
+};
+
+}  // namespace stereo_ground_dem

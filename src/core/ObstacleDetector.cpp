@@ -1,0 +1,234 @@
+#include "stereo_ground_dem/ObstacleDetector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+bool ObstacleDetectorOptions::isValid(std::string* why) const {
+  auto bad = [why](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (level < 0 || level > 5) return bad("level must be in 0..5");
+  if (window_width_px < 1 || window_height_px < 1) return bad("window sizes must be >= 1");
+  if (!(min_obstacle_height_m > 0.0)) return bad("min_obstacle_height_m must be > 0");
+  if (!(camera_height_m > min_obstacle_height_m)) return bad("camera_height_m must exceed min_obstacle_height_m");
+  if (!(cost_ratio > 0.0 && cost_ratio <= 1.0)) return bad("cost_ratio must be in (0, 1]");
+  if (!(min_ground_cost_grey >= 0.0)) return bad("min_ground_cost_grey must be >= 0");
+  if (!(min_range_m > 0.0)) return bad("min_range_m must be > 0");
+  if (!(ground_band_m >= 0.0) || !(ground_band_m < camera_height_m)) return bad("ground_band_m must be in [0, camera_height_m)");
+  if (dilation_px < 0) return bad("dilation_px must be >= 0");
+  return true;
+}
+
+ObstacleDetector::ObstacleDetector(const ObstacleDetectorOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.isValid(&why)) throw std::invalid_argument("ObstacleDetectorOptions: " + why);
+}
+
+ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyramid& right, const StereoRig& rig,
+                                      const PhotometricParams& ph, const cv::Mat& ground_rho) const {
+  const ObstacleDetectorOptions& o = options_;
+  ObstacleMask out;
+  const int levels = left.levels();
+  const int lv = std::min(o.level, levels - 1);
+  out.level = lv;
+  const cv::Mat& l = left.level(lv).image;
+  const int w = l.cols, h = l.rows;
+  for (int k = 0; k < levels; ++k) out.excluded.push_back(cv::Mat::zeros(left.height(k), left.width(k), CV_8U));
+  out.disparity = cv::Mat::zeros(h, w, CV_32F);
+  if (!o.enabled) return out;
+  if (ground_rho.size() != l.size() || ground_rho.type() != CV_32F) {
+    throw std::invalid_argument("ObstacleDetector: ground inverse depth must be CV_32F of the test level's size");
+  }
+  const StereoRig r = rig.atLevel(lv);
+  const double fxb = r.fx * r.baseline_m;
+  cv::Mat a;  // photometrically corrected right image
+  right.level(lv).image.convertTo(a, CV_32F, ph.gain, ph.bias_grey);
+
+  // Ground hypothesis: slanted windows following the mesh's own disparity, and the same surface
+  // raised or lowered by up to ground_band_m (a plane parallel to the ground raised by h has
+  // disparity d * H / (H - h)): raised ground such as a curb top or a terrace is ground.
+  cv::Mat dg(h, w, CV_32F);
+  for (int v = 0; v < h; ++v) {
+    const float* rho = ground_rho.ptr<float>(v);
+    float* d = dg.ptr<float>(v);
+    for (int u = 0; u < w; ++u) d[u] = rho[u] > 0.0f ? static_cast<float>(fxb * rho[u]) : 0.0f;
+  }
+  const cv::Size win(o.window_width_px, o.window_height_px);
+  cv::Mat cost_g(h, w, CV_32F, cv::Scalar(1e30f));
+  cv::Mat res_g(h, w, CV_32F), valid_g(h, w, CV_32F), sum_g, cnt_g;
+  const int bands = std::max(1, static_cast<int>(std::ceil(o.ground_band_m / 0.1)));
+  for (int k = -bands; k <= bands; ++k) {
+    const double hk = o.ground_band_m * k / bands;
+    const float sc = static_cast<float>(o.camera_height_m / (o.camera_height_m - hk));
+    res_g.setTo(0.0f);
+    valid_g.setTo(0.0f);
+    for (int v = 0; v < h; ++v) {
+      const float* d = dg.ptr<float>(v);
+      const float* lr = l.ptr<float>(v);
+      const float* ar = a.ptr<float>(v);
+      float* rg = res_g.ptr<float>(v);
+      float* vg = valid_g.ptr<float>(v);
+      for (int u = 0; u < w; ++u) {
+        if (!(d[u] > 0.0f)) continue;
+        const float x = static_cast<float>(u) - d[u] * sc;
+        if (x < 0.0f || x >= w - 1) continue;
+        const int x0 = static_cast<int>(x);
+        const float f = x - static_cast<float>(x0);
+        rg[u] = std::abs(lr[u] - ((1.0f - f) * ar[x0] + f * ar[x0 + 1]));
+        vg[u] = 1.0f;
+      }
+    }
+    cv::boxFilter(res_g, sum_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    cv::boxFilter(valid_g, cnt_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    for (int v = 0; v < h; ++v) {
+      const float* s = sum_g.ptr<float>(v);
+      const float* c = cnt_g.ptr<float>(v);
+      float* cg = cost_g.ptr<float>(v);
+      for (int u = 0; u < w; ++u) {
+        if (c[u] >= 0.5f * win.area()) cg[u] = std::min(cg[u], s[u] / c[u]);
+      }
+    }
+  }
+
+  // Upright hypothesis: fronto-parallel windows at integer disparities closer than the ground.
+  const double ratio = o.camera_height_m / (o.camera_height_m - o.min_obstacle_height_m);
+  const int dmax = std::min(w - 2, static_cast<int>(std::ceil(fxb / o.min_range_m)));
+  cv::Mat best(h, w, CV_32F, cv::Scalar(1e30f)), best_d = cv::Mat::zeros(h, w, CV_32F);
+  cv::Mat thr(h, w, CV_32F);
+  for (int v = 0; v < h; ++v) {
+    const float* d = dg.ptr<float>(v);
+    float* t = thr.ptr<float>(v);
+    for (int u = 0; u < w; ++u) t[u] = d[u] > 0.0f ? static_cast<float>(d[u] * ratio + o.margin_px) : 1e30f;
+  }
+  cv::Mat diff(h, w, CV_32F), vmask(h, w, CV_32F), sum_d, cnt_d;
+  for (int d = 1; d <= dmax; ++d) {
+    for (int v = 0; v < h; ++v) {
+      const float* lr = l.ptr<float>(v);
+      const float* ar = a.ptr<float>(v);
+      float* df = diff.ptr<float>(v);
+      float* vm = vmask.ptr<float>(v);
+      for (int u = 0; u < w; ++u) {
+        if (u - d >= 0) {
+          df[u] = std::abs(lr[u] - ar[u - d]);
+          vm[u] = 1.0f;
+        } else {
+          df[u] = 0.0f;
+          vm[u] = 0.0f;
+        }
+      }
+    }
+    cv::boxFilter(diff, sum_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    cv::boxFilter(vmask, cnt_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    const float df = static_cast<float>(d);
+    for (int v = 0; v < h; ++v) {
+      const float* s = sum_d.ptr<float>(v);
+      const float* c = cnt_d.ptr<float>(v);
+      const float* t = thr.ptr<float>(v);
+      float* b = best.ptr<float>(v);
+      float* bd = best_d.ptr<float>(v);
+      for (int u = 0; u < w; ++u) {
+        if (df < t[u] || c[u] < 0.5f * win.area()) continue;
+        const float m = s[u] / c[u];
+        if (m < b[u]) {
+          b[u] = m;
+          bd[u] = df;
+        }
+      }
+    }
+  }
+  cv::Mat mask = cv::Mat::zeros(h, w, CV_8U);
+  const float scale = std::ldexp(1.0f, lv);
+  for (int v = 0; v < h; ++v) {
+    const float* cg = cost_g.ptr<float>(v);
+    const float* b = best.ptr<float>(v);
+    const float* bd = best_d.ptr<float>(v);
+    const float* rho = ground_rho.ptr<float>(v);
+    uint8_t* m = mask.ptr<uint8_t>(v);
+    float* od = out.disparity.ptr<float>(v);
+    for (int u = 0; u < w; ++u) {
+      if (!(rho[u] > 0.0f) || cg[u] > 1e29f || b[u] > 1e29f) continue;
+      if (cg[u] > o.min_ground_cost_grey && b[u] < o.cost_ratio * cg[u]) {
+        m[u] = 255;
+        od[u] = bd[u] * scale;
+      }
+    }
+  }
+  // An upright obstacle reaches down to where it stands: below a flagged pixel, the column belongs
+  // to the obstacle until the ground's disparity reaches the obstacle's (its foot), as long as
+  // the upright surface at the obstacle's disparity explains the pixel's window at least as well
+  // as the ground. This covers the low parts (bumpers, the base of a pole) whose disparity is too
+  // close to the ground's for the test above.
+  const int hw = o.window_width_px / 2, hh = o.window_height_px / 2;
+  constexpr int kMinRun = 3;  // a foot is sought only below an upright run of this many pixels
+  auto uprightCost = [&](int u, int v, int d) {
+    float sum = 0.0f;
+    int n = 0;
+    for (int dv = -hh; dv <= hh; ++dv) {
+      const int vv = v + dv;
+      if (vv < 0 || vv >= h) continue;
+      const float* lr = l.ptr<float>(vv);
+      const float* ar = a.ptr<float>(vv);
+      for (int du = -hw; du <= hw; ++du) {
+        const int uu = u + du;
+        if (uu < 0 || uu >= w || uu - d < 0) continue;
+        sum += std::abs(lr[uu] - ar[uu - d]);
+        ++n;
+      }
+    }
+    return n > 0 ? sum / static_cast<float>(n) : 1e30f;
+  };
+  for (int u = 0; u < w; ++u) {
+    float d_obst = 0.0f;
+    int run = 0;  // flagged pixels in a row with consistent disparity just above
+    float run_d = 0.0f;
+    for (int v = 0; v < h; ++v) {
+      uint8_t& m = mask.at<uint8_t>(v, u);
+      float& od = out.disparity.at<float>(v, u);
+      const float d_ground = dg.at<float>(v, u) * scale;
+      if (m) {
+        run = (run > 0 && std::abs(od - run_d) <= 0.15f * run_d + scale) ? run + 1 : 1;
+        run_d = run > 1 ? std::max(run_d, od) : od;
+        if (run >= kMinRun) d_obst = std::max(d_obst, run_d);
+      } else if (d_obst > 0.0f && d_ground > 0.0f && d_ground < d_obst * 0.97f &&
+                 uprightCost(u, v, static_cast<int>(std::lround(d_obst / scale))) <= 1.5f * cost_g.at<float>(v, u)) {
+        m = 255;
+        od = d_obst;
+      } else {
+        d_obst = 0.0f;
+        run = 0;
+      }
+    }
+  }
+  out.pixels = cv::countNonZero(mask);
+  if (o.dilation_px > 0) {
+    cv::dilate(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * o.dilation_px + 1, 2 * o.dilation_px + 1)));
+  }
+  // Masks for every level: nearest-neighbour upsampling to finer levels, any-of to coarser ones.
+  out.excluded[static_cast<size_t>(lv)] = mask;
+  for (int k = lv - 1; k >= 0; --k) {
+    cv::resize(out.excluded[static_cast<size_t>(k + 1)], out.excluded[static_cast<size_t>(k)],
+               out.excluded[static_cast<size_t>(k)].size(), 0, 0, cv::INTER_NEAREST);
+  }
+  for (int k = lv + 1; k < levels; ++k) {
+    const cv::Mat& fine = out.excluded[static_cast<size_t>(k - 1)];
+    cv::Mat& coarse = out.excluded[static_cast<size_t>(k)];
+    for (int v = 0; v < coarse.rows; ++v)
+      for (int u = 0; u < coarse.cols; ++u) {
+        uint8_t any = 0;
+        for (int dv = 0; dv < 2; ++dv)
+          for (int du = 0; du < 2; ++du) {
+            const int fv = std::min(2 * v + dv, fine.rows - 1), fu = std::min(2 * u + du, fine.cols - 1);
+            any |= fine.at<uint8_t>(fv, fu);
+          }
+        coarse.at<uint8_t>(v, u) = any;
+      }
+  }
+  return out;
+}
+
+}  // namespace stereo_ground_dem
