@@ -77,6 +77,9 @@ struct FrameResult {
   int valid_pixels = 0;
   int fused_vertices = 0;
   Matrix6d motion_information = Matrix6d::Zero();  ///< [1/m^2, 1/rad^2], twist (v, w) in camera
+  std::vector<AlignmentReport> reports;  ///< per mesh level, coarse to fine
+  double obstacle_ms = 0.0;              ///< occlusion reasoning
+  int obstacle_pixels = 0;               ///< at the obstacle test level
 };
 
 class IncrementalEstimator {

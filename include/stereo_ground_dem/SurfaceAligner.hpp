@@ -109,6 +109,10 @@ struct AlignmentReport {
   double median_abs_residual_grey = 0.0;
   int working_triangles = 0;
   int active_vertices = 0;
+  int evaluations = 0;               ///< rasterize + residual passes
+  double setup_ms = 0.0;             ///< working set, basis, pattern
+  double evaluate_ms = 0.0;          ///< rasterization and pixel loops
+  double solve_ms = 0.0;             ///< normal equations and their solution
   /// Per fine vertex, from the final linearization: diagonal of the data term's normal matrix
   /// (information about the height) [1/m^2], and the number of pixels in its triangles.
   Eigen::VectorXd vertex_information;

@@ -336,8 +336,11 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   ao_motion.estimate_motion = !recover;
   const SurfaceAligner aligner_static(ao), aligner_motion(ao_motion);
 
+  const auto t_obst = std::chrono::steady_clock::now();
   const ObstacleMask obstacles =
       stereo_.detectObstacles(*pl, *pr, window, heights, predicted, state.photometric[0]);
+  res.obstacle_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_obst).count();
+  res.obstacle_pixels = obstacles.pixels;
   AlignmentProblem prob;
   prob.reference = pl.get();
   prob.rig = &rig_;
@@ -360,6 +363,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     stereo_.levelBasis(window, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
     prob.basis = basis.size() > 0 ? &basis : nullptr;
     last = (temporal ? aligner_motion : aligner_static).align(prob, level_state);
+    res.reports.push_back(last);
     state.camera_T_ground = level_state.camera_T_ground;
     state.heights = level_state.heights;
     state.photometric[0] = level_state.photometric[0];

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -863,7 +864,11 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   checkProblem(problem, state);
   thread_local Workspace ws;
   AlignmentReport report;
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+  auto t0 = Clock::now();
   LevelSolver solver(options_, problem, state, &ws);
+  report.setup_ms = ms(t0, Clock::now());
   report.working_triangles = solver.workingTriangles();
   report.active_vertices = solver.activeCount();
   if (solver.empty()) {
@@ -873,19 +878,27 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   }
   Evaluation* ev = &ws.eval[0];
   Evaluation* trial_ev = &ws.eval[1];
+  t0 = Clock::now();
   solver.evaluate(state, ev);
+  report.evaluate_ms += ms(t0, Clock::now());
+  report.evaluations++;
   report.initial_cost = ev->total();
   SurfaceState trial;
   for (int it = 0; it < options_.max_iterations; ++it) {
     report.iterations = it + 1;
+    t0 = Clock::now();
     const auto step = solver.solve(state, *ev, &report);
+    report.solve_ms += ms(t0, Clock::now());
     if (!step.ok) break;
     double alpha = 1.0;
     bool accepted = false;
     double max_dz = 0.0;
     for (int h = 0; h <= options_.max_step_halvings; ++h, alpha *= 0.5) {
       max_dz = solver.apply(step, alpha, state, &trial);
+      t0 = Clock::now();
       solver.evaluate(trial, trial_ev);
+      report.evaluate_ms += ms(t0, Clock::now());
+      report.evaluations++;
       if (trial_ev->total() <= ev->total() * (1.0 + 1e-9)) {
         accepted = true;
         break;
