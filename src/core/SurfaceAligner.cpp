@@ -1,6 +1,7 @@
 #include "stereo_ground_dem/SurfaceAligner.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <chrono>
@@ -31,6 +32,9 @@ bool SurfaceAlignerOptions::isValid(std::string* why) const {
   if (border_margin_px < 1) return bad("border_margin_px must be >= 1");
   if (!(saturated_level_grey > dark_level_grey)) return bad("saturated_level_grey must exceed dark_level_grey");
   if (!(outside_penalty_factor >= 0.0)) return bad("outside_penalty_factor must be >= 0");
+  if (num_threads < 1) return bad("num_threads must be >= 1");
+  if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0)) return bad("cg_tolerance must be in (0, 1)");
+  if (cg_max_iterations < 1) return bad("cg_max_iterations must be >= 1");
   return true;
 }
 
@@ -570,19 +574,40 @@ class LevelSolver {
       gc = basis_t_ * gz;
       hcg = basis_t_ * hzg;
     }
-    if (!analyzed_ || analyzed_nnz_ != hcc->nonZeros()) {
-      chol_.analyzePattern(*hcc);
-      analyzed_ = true;
-      analyzed_nnz_ = hcc->nonZeros();
+    // H^{-1} [hcg, gc]: conjugate gradients, or the sparse Cholesky factorization.
+    Eigen::MatrixXd rhs(hcc->rows(), ng + 1);
+    if (ng > 0) rhs.leftCols(ng) = hcg;
+    rhs.col(ng) = gc;
+    Eigen::MatrixXd sol;
+    bool solved = false;
+    if (opt_.linear_solver == SurfaceAlignerOptions::LinearSolver::kConjugateGradient) {
+      cg_.setTolerance(opt_.cg_tolerance);
+      cg_.setMaxIterations(opt_.cg_max_iterations);
+      cg_.compute(*hcc);
+      sol.resize(rhs.rows(), rhs.cols());
+      solved = cg_.info() == Eigen::Success;
+      for (int c = 0; c < rhs.cols() && solved; ++c) {
+        sol.col(c) = cg_.solve(rhs.col(c));
+        solved = cg_.info() == Eigen::Success && sol.col(c).allFinite();
+      }
+      if (!solved) report->cg_fallbacks++;
     }
-    chol_.factorize(*hcc);
-    if (chol_.info() != Eigen::Success) {
-      report->degenerate = true;
-      return step;
+    if (!solved) {
+      if (!analyzed_ || analyzed_nnz_ != hcc->nonZeros()) {
+        chol_.analyzePattern(*hcc);
+        analyzed_ = true;
+        analyzed_nnz_ = hcc->nonZeros();
+      }
+      chol_.factorize(*hcc);
+      if (chol_.info() != Eigen::Success) {
+        report->degenerate = true;
+        return step;
+      }
+      sol = chol_.solve(rhs);
     }
     if (ng > 0) {
-      const Eigen::MatrixXd hinv_hcg = chol_.solve(hcg);
-      const Eigen::VectorXd hinv_gc = chol_.solve(gc);
+      const Eigen::MatrixXd hinv_hcg = sol.leftCols(ng);
+      const Eigen::VectorXd hinv_gc = sol.col(ng);
       const Eigen::MatrixXd schur = hgg - hcg.transpose() * hinv_hcg;
       const Eigen::LDLT<Eigen::MatrixXd> ldlt(schur);
       if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
@@ -596,7 +621,7 @@ class LevelSolver {
         report->motion_information = schur.topLeftCorner<6, 6>();
       }
     } else {
-      step.dtheta = chol_.solve(-gc);
+      step.dtheta = -sol.col(0);
     }
     step.ok = step.dtheta.allFinite() && step.dglobal.allFinite();
     if (!step.ok) report->degenerate = true;
@@ -822,6 +847,7 @@ class LevelSolver {
   std::vector<int> diag_index_;
   Eigen::VectorXd smooth_values_;
   Eigen::SimplicialLDLT<SpMat> chol_;
+  Eigen::ConjugateGradient<SpMat, Eigen::Lower | Eigen::Upper> cg_;
   bool analyzed_ = false;
   Eigen::Index analyzed_nnz_ = 0;
   int global_count_ = 0;

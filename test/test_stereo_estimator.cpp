@@ -1,0 +1,186 @@
+// Stereo mode (one pair) against exact ground truth from the synthetic renderer.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+
+#include "stereo_ground_dem/StereoEstimator.hpp"
+#include "stereo_ground_dem/sim/SequenceGenerator.hpp"
+#include "stereo_ground_dem/sim/StereoRenderer.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+struct Errors {
+  double median = 0.0, p95 = 0.0;
+  size_t count = 0;
+};
+
+Errors quantiles(std::vector<double> e) {
+  Errors out;
+  out.count = e.size();
+  if (e.empty()) return out;
+  std::sort(e.begin(), e.end());
+  out.median = e[e.size() / 2];
+  out.p95 = e[std::min(e.size() - 1, e.size() * 95 / 100)];
+  return out;
+}
+
+struct Case {
+  sim::SyntheticScene scene;
+  StereoRig rig;
+  Eigen::Isometry3d ground_T_left;
+  sim::RenderedPair pair;
+};
+
+/// A KITTI-like pair; left = 1.2 * right + 10 (gain 20 % and bias 10 levels apart).
+Case render(sim::SceneKind kind) {
+  sim::SceneOptions so = sim::SceneOptions::standard(kind, 7);
+  Case c{sim::SyntheticScene(so), sim::StereoRenderer::kittiLikeRig(1.0), {}, {}};
+  sim::RenderOptions ro;
+  ro.noise_std_grey = 1.0;
+  const sim::StereoRenderer renderer(c.scene, c.rig, ro);
+  c.ground_T_left = sim::SequenceGenerator::cameraPose(c.scene, sim::SequenceOptions(), 0.0, 0.0, 0.0);
+  c.pair = renderer.renderPair(c.ground_T_left, {1.2, 10.0}, {1.0, 0.0}, 0.0, 3);
+  return c;
+}
+
+/// Absolute height errors [m] of the observed vertices at camera depth [near, far), excluding
+/// obstacle footprints, in the true ground frame.
+std::vector<double> heightErrors(const Case& c, const StereoResult& r, double near_m, double far_m) {
+  const Eigen::Isometry3d true_T_est = c.ground_T_left * r.ground_T_camera.inverse();
+  std::vector<double> e;
+  for (int v = 0; v < r.grid.vertexCount(); ++v) {
+    if (!std::isfinite(r.heights[v])) continue;
+    const Eigen::Vector2d xy = r.grid.position(v);
+    const Eigen::Vector3d p = true_T_est * Eigen::Vector3d(xy.x(), xy.y(), r.heights[v]);
+    const double depth = (c.ground_T_left.inverse() * p).z();
+    if (depth < near_m || depth >= far_m || c.scene.insideObstacleFootprint(p.x(), p.y(), 0.0)) continue;
+    e.push_back(std::abs(p.z() - c.scene.terrainHeight(p.x(), p.y())));
+  }
+  return e;
+}
+
+StereoResult run(const Case& c, const StereoEstimatorOptions& o = StereoEstimatorOptions()) {
+  const StereoEstimator est(c.rig, o);
+  return est.estimate(c.pair.left.image, c.pair.right.image);
+}
+
+}  // namespace
+
+// Measured (2 runs, this code): flat median 0.22 cm, p95 0.90 cm; gain 1.2005, bias 9.94.
+TEST(StereoEstimator, FlatRoadHeightsGainAndBias) {
+  const Case c = render(sim::SceneKind::kFlatRoad);
+  const StereoResult r = run(c);
+  ASSERT_TRUE(r.ok) << r.message;
+  const Errors e = quantiles(heightErrors(c, r, 5.0, 20.0));
+  EXPECT_GT(e.count, 1000u);
+  EXPECT_LT(e.median, 0.005);
+  EXPECT_LT(e.p95, 0.015);
+  EXPECT_NEAR(r.photometric.gain, 1.2, 0.012 * 0.5);  // within 0.5 % (issue: 1 %)
+  EXPECT_NEAR(r.photometric.bias_grey, 10.0, 0.5);   // within 0.5 level (issue: 1)
+  // The ground frame: camera 1.65 m above the plane fitted through level ground.
+  EXPECT_NEAR(r.ground_T_camera.translation().z(), 1.65, 0.01);
+  // Farther away the mesh is still centimetre-accurate on a flat road.
+  const Errors far = quantiles(heightErrors(c, r, 20.0, 40.0));
+  EXPECT_LT(far.median, 0.01);
+  EXPECT_LT(far.p95, 0.03);
+}
+
+// Measured: bump median 0.31 cm, p95 1.56 cm; the bump's peak vertices within 2 cm.
+TEST(StereoEstimator, SpeedBumpAndCurb) {
+  const Case c = render(sim::SceneKind::kBumpAndCurb);
+  const StereoResult r = run(c);
+  ASSERT_TRUE(r.ok) << r.message;
+  const Errors e = quantiles(heightErrors(c, r, 5.0, 20.0));
+  EXPECT_GT(e.count, 1000u);
+  EXPECT_LT(e.median, 0.006);
+  EXPECT_LT(e.p95, 0.025);
+  EXPECT_NEAR(r.photometric.gain, 1.2, 0.006);
+  EXPECT_NEAR(r.photometric.bias_grey, 10.0, 0.5);
+  // The bump is really there: vertices on its crest are ~10 cm above the road next to it.
+  const Eigen::Isometry3d true_T_est = c.ground_T_left * r.ground_T_camera.inverse();
+  const Eigen::Isometry3d est_T_true = true_T_est.inverse();
+  auto heightAt = [&](double x, double y) {
+    const Eigen::Vector3d pe = est_T_true * Eigen::Vector3d(x, y, 0.0);
+    const double z = r.grid.interpolate(r.heights, pe.x(), pe.y());
+    return (true_T_est * Eigen::Vector3d(pe.x(), pe.y(), z)).z();
+  };
+  for (double y : {-2.0, 0.0, 2.0}) {
+    EXPECT_NEAR(heightAt(13.0, y), 0.10, 0.02) << "bump crest at y = " << y;
+    EXPECT_NEAR(heightAt(10.0, y), 0.00, 0.01) << "road before the bump at y = " << y;
+  }
+  // The curb: the sidewalk at y < -3.75 is 12 cm up.
+  for (double x : {8.0, 10.0}) {
+    EXPECT_NEAR(heightAt(x, -4.5) - heightAt(x, -3.0), 0.12, 0.03) << "curb step at x = " << x;
+  }
+}
+
+TEST(StereoEstimator, ConvergesFromAWrongNominalPose) {
+  // 15 cm too high and 1.5 degrees of pitch off: the start-up plane fit corrects it.
+  const Case c = render(sim::SceneKind::kFlatRoad);
+  StereoEstimatorOptions o;
+  o.nominal_height_m = 1.80;
+  o.nominal_pitch_down_rad = 1.5 * M_PI / 180.0;
+  const StereoResult r = run(c, o);
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_NEAR(r.ground_T_camera.translation().z(), 1.65, 0.01);
+  const Errors e = quantiles(heightErrors(c, r, 5.0, 20.0));
+  EXPECT_LT(e.median, 0.005);
+}
+
+TEST(StereoEstimator, ImpliedDisparityMatchesTheRenderer) {
+  const Case c = render(sim::SceneKind::kFlatRoad);
+  const StereoEstimator est(c.rig, StereoEstimatorOptions());
+  const ImagePyramid left = est.makePyramid(c.pair.left.image);
+  const ImagePyramid right = est.makePyramid(c.pair.right.image);
+  const StereoResult r = est.estimate(left, right);
+  ASSERT_TRUE(r.ok);
+  const cv::Mat d = est.impliedDisparity(r, left);
+  std::vector<double> err;
+  for (int v = 0; v < d.rows; ++v)
+    for (int u = 0; u < d.cols; ++u) {
+      const float de = d.at<float>(v, u);
+      const float rho = c.pair.left.inverse_depth.at<float>(v, u);
+      if (de <= 0.0f || rho <= 0.0f) continue;
+      err.push_back(std::abs(de - c.rig.disparityTimesDepth() * rho));
+    }
+  const Errors e = quantiles(err);
+  std::cout << "disparity error median " << e.median << " p95 " << e.p95 << " n " << e.count << "\n";
+  EXPECT_GT(e.count, 150000u);   // the ground below the 40 m line, full resolution
+  EXPECT_LT(e.median, 0.03);     // [px]
+  EXPECT_LT(e.p95, 0.12);
+}
+
+TEST(StereoEstimator, RejectsBadInputWithAMessage) {
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(0.25);
+  const StereoEstimator est(rig, StereoEstimatorOptions());
+  const cv::Mat a(rig.height, rig.width, CV_8U, cv::Scalar(100));
+  const cv::Mat b(rig.height + 2, rig.width, CV_8U, cv::Scalar(100));
+  StereoResult r = est.estimate(a, b);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.message.find("differ in size"), std::string::npos) << r.message;
+  const cv::Mat wrong(rig.height * 2, rig.width * 2, CV_8U, cv::Scalar(100));
+  r = est.estimate(wrong, wrong);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.message.find("does not match the calibration"), std::string::npos) << r.message;
+  // A flat grey pair has no texture: the start-up fit finds no usable pixels.
+  r = est.estimate(a, a);
+  EXPECT_FALSE(r.ok);
+  EXPECT_FALSE(r.message.empty());
+  StereoEstimatorOptions bad;
+  bad.grid_resolution_m = -1.0;
+  EXPECT_THROW(StereoEstimator(rig, bad), std::invalid_argument);
+}
+
+TEST(PhotometricParams, InverseCompositionalUpdate) {
+  // (1 + dg) I0 + db = a I1 + b  <=>  I0 = a' I1 + b' with a' = a / (1 + dg), b' = (b - db) / (1 + dg)
+  const PhotometricParams p{1.3, -7.0};
+  const double dg = 0.05, db = 2.5;
+  const PhotometricParams q = p.composedWithInverse(dg, db);
+  for (double i1 : {0.0, 50.0, 200.0}) {
+    const double i0 = q.gain * i1 + q.bias_grey;
+    EXPECT_NEAR((1.0 + dg) * i0 + db, p.gain * i1 + p.bias_grey, 1e-12);
+  }
+}
