@@ -103,6 +103,10 @@ class IncrementalEstimator {
   /// Forgets everything (map, ground frame, trajectory).
   void reset();
 
+  /// The disparity [px] the fused map implies at every pixel of a left camera at ground_T_camera
+  /// (0 where there is no surface), at full resolution. Requires initialized().
+  cv::Mat surfaceDisparity(const Eigen::Isometry3d& ground_T_camera) const;
+
   /// The window of the lattice covering the camera's working range from camera_T_ground.
   GroundGrid viewWindow(const Eigen::Isometry3d& camera_T_ground) const;
 

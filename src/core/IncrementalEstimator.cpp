@@ -109,6 +109,29 @@ std::string IncrementalEstimator::checkImages(const ImagePyramid& left, const Im
   return {};
 }
 
+cv::Mat IncrementalEstimator::surfaceDisparity(const Eigen::Isometry3d& ground_T_camera) const {
+  if (!initialized_ || !prev_left_) throw std::logic_error("IncrementalEstimator::surfaceDisparity before initialization");
+  const Eigen::Isometry3d camera_T_ground = ground_T_camera.inverse();
+  const GroundGrid window = viewWindow(camera_T_ground);
+  Eigen::VectorXd heights, info;
+  map_.sample(window, &heights, &info);
+  const StereoEstimatorOptions& so = options_.stereo;
+  SurfaceAlignerOptions ao = so.aligner;
+  ao.min_depth_m = so.min_range_m;
+  ao.max_depth_m = so.max_range_m;
+  ao.max_lateral_m = so.max_lateral_m;
+  const SurfaceAligner aligner(ao);
+  AlignmentProblem prob;
+  prob.reference = prev_left_.get();
+  prob.rig = &rig_;
+  prob.grid = &window;
+  prob.level = 0;
+  SurfaceState state;
+  state.camera_T_ground = camera_T_ground;
+  state.heights = heights;
+  return aligner.renderInverseDepth(prob, state) * rig_.disparityTimesDepth();
+}
+
 GroundGrid IncrementalEstimator::viewWindow(const Eigen::Isometry3d& camera_T_ground) const {
   const StereoEstimatorOptions& s = options_.stereo;
   const Eigen::Isometry3d g_T_c = camera_T_ground.inverse();

@@ -527,6 +527,9 @@ class LevelSolver {
         }
       }
     }
+    // A pair whose pixels are all masked or outside leaves its photometric block empty; a tiny
+    // Levenberg damping keeps the global block invertible (the step for it is then ~0).
+    for (int k = 0; k < ng; ++k) hgg(k, k) += 1e-9 * (1.0 + hgg(k, k)) + (hgg(k, k) == 0.0 ? 1.0 : 0.0);
     report->vertex_information = Eigen::VectorXd::Zero(prob_.grid->vertexCount());
     for (int a = 0; a < na; ++a) report->vertex_information[active_[static_cast<size_t>(a)]] = data_diag[a];
 

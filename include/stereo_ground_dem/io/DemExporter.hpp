@@ -1,0 +1,38 @@
+#pragma once
+/// \file DemExporter.hpp
+/// Writes a DEM and its companion layers and pictures into a folder, the same way for the offline
+/// runner and the ROS node's save service:
+///   dem.tif (float32 heights [m], NaN unknown), dem.yaml (grid, origin, ground_T_camera0, layers),
+///   variance.tif [m^2], traversability.tif [0..1] (and obstacles.tif when given),
+///   dem_height.png (shaded, coloured, legend, trajectory), traversability.png, mesh.ply.
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/GroundGrid.hpp"
+
+namespace stereo_ground_dem {
+
+struct DemExport {
+  GroundGrid grid;
+  cv::Mat elevation;       ///< CV_32F rows x cols [m], NaN unknown
+  cv::Mat variance;        ///< optional [m^2]
+  cv::Mat traversability;  ///< optional [0..1]
+  cv::Mat obstacles;       ///< optional: obstacle height above the ground [m], NaN / 0 none
+  Eigen::Isometry3d ground_T_camera0 = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Vector2d> trajectory_xy;  ///< ground (x, y) of the camera per frame
+  std::vector<std::pair<std::string, std::string>> extra;  ///< extra dem.yaml entries (strings)
+};
+
+class DemExporter {
+ public:
+  /// Writes the files into `directory` (created if missing); returns their names. Throws
+  /// std::runtime_error (with the path) when something cannot be written.
+  static std::vector<std::string> write(const std::string& directory, const DemExport& dem, bool pictures = true);
+  /// mkdir -p; throws std::runtime_error on failure.
+  static void makeDirectories(const std::string& directory);
+};
+
+}  // namespace stereo_ground_dem

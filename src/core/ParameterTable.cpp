@@ -1,0 +1,167 @@
+#include "stereo_ground_dem/ParameterTable.hpp"
+
+#include <cmath>
+#include <opencv2/core/persistence.hpp>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+bool PipelineOptions::isValid(std::string* why) const {
+  std::string w;
+  if (!estimator.isValid(&w)) {
+    if (why) *why = w;
+    return false;
+  }
+  if (!traversability.isValid(&w)) {
+    if (why) *why = "traversability: " + w;
+    return false;
+  }
+  return true;
+}
+
+ParameterTable::ParameterTable(PipelineOptions* o) {
+  auto d = [this](const char* n, double* f, const char* desc, bool tunable = false) {
+    entries_.push_back({n, Type::kDouble, f, desc, tunable});
+  };
+  auto i = [this](const char* n, int* f, const char* desc, bool tunable = false) {
+    entries_.push_back({n, Type::kInt, f, desc, tunable});
+  };
+  auto b = [this](const char* n, bool* f, const char* desc, bool tunable = false) {
+    entries_.push_back({n, Type::kBool, f, desc, tunable});
+  };
+  IncrementalEstimatorOptions& e = o->estimator;
+  StereoEstimatorOptions& s = e.stereo;
+  SurfaceAlignerOptions& a = s.aligner;
+  ObstacleDetectorOptions& ob = s.obstacles;
+  TraversabilityOptions& t = o->traversability;
+  // mesh and working range
+  d("grid_resolution_m", &s.grid_resolution_m, "finest mesh spacing [m]");
+  i("mesh_levels", &s.mesh_levels, "hierarchical meshing levels (spacing 2^(L-1) s ... s), each with one pyramid level");
+  d("min_range_m", &s.min_range_m, "nearest vertices estimated, camera depth [m]", true);
+  d("max_range_m", &s.max_range_m, "farthest vertices estimated, camera depth [m]", true);
+  d("max_lateral_m", &s.max_lateral_m, "widest vertices estimated, |x| in the camera frame [m]", true);
+  // start-up
+  d("nominal_height_m", &s.nominal_height_m, "camera height above the ground, start-up guess [m]");
+  d("nominal_pitch_down_rad", &s.nominal_pitch_down_rad, "camera pitch, start-up guess, positive down [rad]");
+  d("nominal_roll_rad", &s.nominal_roll_rad, "camera roll, start-up guess [rad]");
+  d("plane_fit_min_range_m", &s.plane_fit_min_range_m, "start-up plane fitted on ground from [m]");
+  d("plane_fit_max_range_m", &s.plane_fit_max_range_m, "start-up plane fitted on ground up to [m]");
+  // cost terms
+  d("smoothness_weight", &a.smoothness_weight, "lambda_s, weight of the integrated squared curvature [m^2]", true);
+  d("update_weight", &s.update_weight, "update constraint mu at 0 m depth [1/m^2]", true);
+  d("update_reference_depth_m", &s.update_reference_depth_m, "mu grows as (1 + (depth/this)^2) [m]", true);
+  b("use_hierarchy", &s.use_hierarchy, "coarse-to-fine meshes (false: finest mesh at every level)");
+  d("robust_scale_grey", &a.robust_scale_grey, "Cauchy scale of the photometric residual, <= 0 least squares [grey]", true);
+  d("image_noise_std_grey", &a.image_noise_std_grey, "photometric noise sigma, sets the chi^2 scale [grey]", true);
+  d("presmooth_sigma_px", &s.presmooth_sigma_px, "Gaussian blur of full-resolution images [px]");
+  i("iterations_per_level", &e.iterations_per_level, "Gauss-Newton iterations per level, incremental mode", true);
+  i("stereo_iterations_per_level", &s.iterations_per_level, "Gauss-Newton iterations per level, stereo mode", true);
+  i("temporal_finest_level", &e.temporal_finest_level, "finest pyramid level of the temporal pairs and motion", true);
+  i("num_threads", &a.num_threads, "threads of the pixel loop");
+  b("use_map_prior", &e.use_map_prior, "tie vertices to their fused map values (C_P)", true);
+  d("prior_weight", &e.prior_weight, "scale of the map information in C_P", true);
+  d("dark_level_grey", &a.dark_level_grey, "pixels at or below are not used [grey]", true);
+  d("saturated_level_grey", &a.saturated_level_grey, "pixels at or above are not used [grey]", true);
+  // obstacles
+  b("obstacles_enabled", &ob.enabled, "occlusion reasoning: exclude obstacle pixels from the ground", true);
+  i("obstacle_level", &ob.level, "pyramid level of the obstacle test");
+  d("min_obstacle_height_m", &ob.min_obstacle_height_m, "upright surfaces at least this high are obstacles [m]", true);
+  d("obstacle_cost_ratio", &ob.cost_ratio, "obstacle when its photometric cost < ratio * ground's", true);
+  d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
+  // failure handling and input checks
+  d("max_speed_m_per_s", &e.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
+  d("max_turn_rate_rad_per_s", &e.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);
+  d("max_height_jump_m", &e.max_height_jump_m, "well-known vertices moving this far are implausible [m]", true);
+  d("max_jump_fraction", &e.max_jump_fraction, "... for more than this fraction of them", true);
+  i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
+  d("nominal_frame_period_s", &e.nominal_frame_period_s, "frame period used when stamps do not increase [s]");
+  d("min_mean_grey", &e.min_mean_grey, "darker images are rejected [grey]", true);
+  d("max_saturated_fraction", &e.max_saturated_fraction, "images with more saturated pixels are rejected", true);
+  d("min_std_grey", &e.min_std_grey, "images with less contrast are rejected [grey]", true);
+  // map
+  d("map_keep_radius_m", &e.map.keep_radius_m, "map tiles farther from the vehicle are evicted [m]", true);
+  i("map_tile_size", &e.map.tile_size, "vertices per map tile side");
+  d("map_max_information", &e.map.max_information, "cap on a vertex's information [1/m^2]", true);
+  // traversability
+  d("critical_slope_rad", &t.critical_slope_rad, "slope giving traversability 0 [rad]", true);
+  d("critical_step_m", &t.critical_step_m, "step height giving traversability 0 [m]", true);
+  d("critical_roughness_m", &t.critical_roughness_m, "roughness giving traversability 0 [m]", true);
+  d("slope_window_radius_m", &t.slope_window_radius_m, "half side of the slope plane-fit window [m]", true);
+  d("step_window_radius_m", &t.step_window_radius_m, "half side of the robot-sized step window [m]", true);
+  d("step_run_m", &t.step_run_m, "horizontal run over which a rise counts as a step [m]", true);
+  d("roughness_window_radius_m", &t.roughness_window_radius_m, "half side of the roughness window [m]", true);
+}
+
+const ParameterTable::Entry* ParameterTable::find(const std::string& name) const {
+  for (const auto& e : entries_)
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+bool ParameterTable::set(const std::string& name, double value) const {
+  const Entry* e = find(name);
+  if (!e || !std::isfinite(value)) return false;
+  switch (e->type) {
+    case Type::kDouble: *static_cast<double*>(e->field) = value; return true;
+    case Type::kInt:
+      if (std::abs(value - std::round(value)) > 1e-9) return false;
+      *static_cast<int*>(e->field) = static_cast<int>(std::lround(value));
+      return true;
+    case Type::kBool: *static_cast<bool*>(e->field) = value != 0.0; return true;
+  }
+  return false;
+}
+
+double ParameterTable::get(const Entry& e) const {
+  switch (e.type) {
+    case Type::kDouble: return *static_cast<const double*>(e.field);
+    case Type::kInt: return *static_cast<const int*>(e.field);
+    case Type::kBool: return *static_cast<const bool*>(e.field) ? 1.0 : 0.0;
+  }
+  return 0.0;
+}
+
+void ParameterTable::loadYaml(const std::string& path) const {
+  cv::FileStorage fs;
+  try {
+    fs.open(path, cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
+  } catch (const cv::Exception& ex) {
+    throw std::runtime_error("parameter file '" + path + "': not readable YAML (" + ex.msg + ")");
+  }
+  if (!fs.isOpened()) throw std::runtime_error("parameter file '" + path + "': cannot be opened");
+  cv::FileNode root = fs.root();
+  for (const char* wrapper : {"stereo_ground_dem", "dem_nodelet"}) {
+    if (!root[wrapper].empty() && root[wrapper].isMap()) root = root[wrapper];
+  }
+  for (cv::FileNodeIterator it = root.begin(); it != root.end(); ++it) {
+    const cv::FileNode node = *it;
+    const std::string name = node.name();
+    const Entry* e = find(name);
+    if (!e) {
+      // topic and frame names belong to the ROS layer; they may live in the same file
+      static const char* kRosOnly[] = {"left_topic", "right_topic", "queue_size", "approximate_sync",
+                                       "odom_frame", "base_frame", "map_frame", "camera_frame",
+                                       "publish_tf", "publish_rate_hz", "occupancy_unknown_below", "slop_s"};
+      bool ros_only = false;
+      for (const char* r : kRosOnly) ros_only = ros_only || name == r;
+      if (ros_only) continue;
+      throw std::runtime_error("parameter file '" + path + "': unknown parameter '" + name + "'");
+    }
+    double value = 0.0;
+    if (node.isInt() || node.isReal()) {
+      value = static_cast<double>(node);
+    } else if (node.isString()) {
+      const std::string v = static_cast<std::string>(node);
+      if (v == "true" || v == "True") value = 1.0;
+      else if (v == "false" || v == "False") value = 0.0;
+      else throw std::runtime_error("parameter file '" + path + "': '" + name + "' is not a number: " + v);
+    } else {
+      throw std::runtime_error("parameter file '" + path + "': '" + name + "' is not a number");
+    }
+    if (!set(name, value)) {
+      throw std::runtime_error("parameter file '" + path + "': '" + name + "' must be an integer");
+    }
+  }
+}
+
+}  // namespace stereo_ground_dem

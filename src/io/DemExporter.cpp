@@ -1,0 +1,78 @@
+#include "stereo_ground_dem/io/DemExporter.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+#include <sys/stat.h>
+
+#include "stereo_ground_dem/io/DemMetadata.hpp"
+#include "stereo_ground_dem/io/DemPicture.hpp"
+#include "stereo_ground_dem/io/GeoTiff.hpp"
+#include "stereo_ground_dem/io/PlyWriter.hpp"
+
+namespace stereo_ground_dem {
+
+void DemExporter::makeDirectories(const std::string& directory) {
+  std::string path;
+  size_t pos = 0;
+  while (pos != std::string::npos) {
+    pos = directory.find('/', pos + 1);
+    path = directory.substr(0, pos);
+    if (path.empty()) continue;
+    if (mkdir(path.c_str(), 0755) != 0 && errno != EEXIST) {
+      throw std::runtime_error("cannot create directory '" + path + "': " + std::strerror(errno));
+    }
+  }
+  struct stat st {};
+  if (stat(directory.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    throw std::runtime_error("'" + directory + "' is not a directory");
+  }
+}
+
+std::vector<std::string> DemExporter::write(const std::string& dir, const DemExport& dem, bool pictures) {
+  makeDirectories(dir);
+  std::vector<std::string> written;
+  std::vector<std::string> layers{"elevation"};
+  GeoTiff::write(dir + "/dem.tif", dem.elevation, dem.grid, "elevation");
+  written.push_back("dem.tif");
+  if (!dem.variance.empty()) {
+    GeoTiff::write(dir + "/variance.tif", dem.variance, dem.grid, "variance");
+    written.push_back("variance.tif");
+  }
+  if (!dem.traversability.empty()) {
+    GeoTiff::write(dir + "/traversability.tif", dem.traversability, dem.grid, "traversability");
+    written.push_back("traversability.tif");
+  }
+  if (!dem.obstacles.empty()) {
+    GeoTiff::write(dir + "/obstacles.tif", dem.obstacles, dem.grid, "obstacle_height");
+    written.push_back("obstacles.tif");
+  }
+  DemMetadata meta = DemMetadata::fromGrid(dem.grid, dem.ground_T_camera0, layers);
+  for (const auto& kv : dem.extra) meta.extra_strings[kv.first] = kv.second;
+  // companion rasters on the same grid
+  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif"}) {
+    if (std::find(written.begin(), written.end(), f) == written.end()) continue;
+    std::string key = std::string(f).substr(0, std::string(f).find('.')) + "_file";
+    meta.extra_strings[key] = f;
+  }
+  meta.write(dir + "/dem.yaml");
+  written.push_back("dem.yaml");
+  if (!pictures) return written;
+  DemPictureOptions po;
+  po.title = "DEM heights [m]";
+  DemPicture::save(dir + "/dem_height.png", DemPicture::heightPicture(dem.elevation, dem.grid, po, dem.trajectory_xy));
+  written.push_back("dem_height.png");
+  if (!dem.traversability.empty()) {
+    DemPictureOptions to;
+    to.title = "Traversability (0 lethal .. 1 free)";
+    DemPicture::save(dir + "/traversability.png",
+                     DemPicture::traversabilityPicture(dem.traversability, dem.grid, to, dem.trajectory_xy));
+    written.push_back("traversability.png");
+  }
+  PlyWriter::writeMesh(dir + "/mesh.ply", dem.grid, dem.elevation);
+  written.push_back("mesh.ply");
+  return written;
+}
+
+}  // namespace stereo_ground_dem

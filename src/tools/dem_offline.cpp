@@ -1,0 +1,258 @@
+// dem_offline: the estimator without a ROS master.
+//
+//   dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE]
+//   dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--quiet]
+//
+// One-pair mode runs the stereo mode; sequence mode runs the incremental estimator over a
+// KITTI-odometry-style folder. Both write dem.tif / dem.yaml / dem_disparity_000000.png and
+// pictures into OUT; errors are one line on stderr and a non-zero exit status.
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <numeric>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <string>
+
+#include "stereo_ground_dem/CalibrationReader.hpp"
+#include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/ParameterTable.hpp"
+#include "stereo_ground_dem/StereoEstimator.hpp"
+#include "stereo_ground_dem/TraversabilityFilter.hpp"
+#include "stereo_ground_dem/io/DemExporter.hpp"
+#include "stereo_ground_dem/io/DemPicture.hpp"
+#include "stereo_ground_dem/io/DisparityPng.hpp"
+#include "stereo_ground_dem/io/KittiSequence.hpp"
+#include "stereo_ground_dem/io/TrajectoryWriter.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+const char* kUsage =
+    "usage: dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE]\n"
+    "       dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--quiet]\n"
+    "  --config FILE  YAML file of parameters (see config/kitti.yaml)\n"
+    "  --frames N     process the first N frames only\n"
+    "  --quiet        no per-frame progress lines\n";
+
+struct Args {
+  std::string left, right, calib, sequence, out, config;
+  int frames = -1;
+  bool quiet = false;
+};
+
+Args parse(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw std::invalid_argument(k + " needs a value");
+      return argv[++i];
+    };
+    if (k == "--left") a.left = value();
+    else if (k == "--right") a.right = value();
+    else if (k == "--calib") a.calib = value();
+    else if (k == "--sequence") a.sequence = value();
+    else if (k == "--out") a.out = value();
+    else if (k == "--config") a.config = value();
+    else if (k == "--frames") {
+      const std::string v = value();
+      char* end = nullptr;
+      const long n = std::strtol(v.c_str(), &end, 10);
+      if (*end != '\0' || n < 1) throw std::invalid_argument("--frames needs a positive integer, got '" + v + "'");
+      a.frames = static_cast<int>(n);
+    } else if (k == "--quiet") a.quiet = true;
+    else if (k == "-h" || k == "--help") {
+      std::cout << kUsage;
+      std::exit(0);
+    } else {
+      throw std::invalid_argument("unknown argument '" + k + "'");
+    }
+  }
+  if (a.out.empty()) throw std::invalid_argument("--out is required");
+  const bool pair = !a.left.empty() || !a.right.empty() || !a.calib.empty();
+  if (pair && !a.sequence.empty()) throw std::invalid_argument("use either --left/--right/--calib or --sequence");
+  if (!pair && a.sequence.empty()) throw std::invalid_argument("give --left/--right/--calib or --sequence");
+  if (pair && (a.left.empty() || a.right.empty() || a.calib.empty())) {
+    throw std::invalid_argument("one-pair mode needs --left, --right and --calib");
+  }
+  return a;
+}
+
+PipelineOptions loadOptions(const std::string& config) {
+  PipelineOptions o;
+  if (!config.empty()) ParameterTable(&o).loadYaml(config);
+  std::string why;
+  if (!o.isValid(&why)) throw std::runtime_error("invalid parameters: " + why);
+  return o;
+}
+
+cv::Mat toMat(const GroundGrid& g, const Eigen::VectorXd& v) {
+  cv::Mat m(g.rows, g.cols, CV_32F);
+  for (int r = 0; r < g.rows; ++r)
+    for (int c = 0; c < g.cols; ++c) m.at<float>(r, c) = static_cast<float>(v[g.index(r, c)]);
+  return m;
+}
+
+double peakMemoryMb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss / 1024.0;
+}
+
+void writeOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& disparity) {
+  DemPictureOptions po;
+  cv::Mat d = disparity.clone();
+  d.setTo(std::numeric_limits<float>::quiet_NaN(), disparity <= 0.0f);
+  DemPicture::save(path, DemPicture::overlayOnImage(image, d, std::numeric_limits<double>::quiet_NaN(),
+                                                     std::numeric_limits<double>::quiet_NaN(),
+                                                     "DEM-implied disparity [px]", po));
+}
+
+int runPair(const Args& a) {
+  PipelineOptions o = loadOptions(a.config);
+  StereoRig rig = CalibrationReader::read(a.calib);
+  const cv::Mat left = cv::imread(a.left, cv::IMREAD_UNCHANGED);
+  if (left.empty()) throw std::runtime_error("cannot read image '" + a.left + "'");
+  const cv::Mat right = cv::imread(a.right, cv::IMREAD_UNCHANGED);
+  if (right.empty()) throw std::runtime_error("cannot read image '" + a.right + "'");
+  if (left.size() != right.size()) {
+    std::ostringstream os;
+    os << "left image " << left.cols << "x" << left.rows << " and right image " << right.cols << "x" << right.rows
+       << " differ in size";
+    throw std::runtime_error(os.str());
+  }
+  if (rig.width == 0) {
+    rig.width = left.cols;
+    rig.height = left.rows;
+  }
+  const StereoEstimator est(rig, o.estimator.stereo);
+  const auto t0 = std::chrono::steady_clock::now();
+  const ImagePyramid pl = est.makePyramid(left), pr = est.makePyramid(right);
+  const StereoResult r = est.estimate(pl, pr);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (!r.ok) throw std::runtime_error("estimation failed: " + r.message);
+  DemExport dem;
+  dem.grid = r.grid;
+  dem.elevation = toMat(r.grid, r.heights);
+  Eigen::VectorXd var = r.information.cwiseInverse();
+  for (int v = 0; v < var.size(); ++v)
+    if (!std::isfinite(r.heights[v]) || !(r.information[v] > 0)) var[v] = std::numeric_limits<double>::quiet_NaN();
+  dem.variance = toMat(r.grid, var);
+  dem.traversability = TraversabilityFilter(o.traversability).compute(r.grid, dem.elevation).traversability;
+  dem.ground_T_camera0 = r.ground_T_camera;
+  dem.trajectory_xy = {r.ground_T_camera.translation().head<2>()};
+  dem.extra = {{"mode", "stereo (one pair)"}, {"left_image", a.left}, {"right_image", a.right}};
+  DemExporter::write(a.out, dem);
+  const cv::Mat disp = est.impliedDisparity(r, pl);
+  DisparityPng::write(a.out + "/dem_disparity_000000.png", disp);
+  writeOverlay(a.out + "/dem_disparity_overlay.png", left, disp);
+  int known = 0;
+  for (int v = 0; v < r.heights.size(); ++v) known += std::isfinite(r.heights[v]);
+  std::printf("stereo mode: %.1f ms, %d of %d vertices observed, gain %.4f, bias %.2f grey, camera %.3f m above the ground\n",
+              ms, known, r.grid.vertexCount(), r.photometric.gain, r.photometric.bias_grey,
+              r.ground_T_camera.translation().z());
+  std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
+              "mesh.ply, dem_disparity_000000.png, dem_disparity_overlay.png}\n",
+              a.out.c_str());
+  return 0;
+}
+
+int runSequence(const Args& a) {
+  PipelineOptions o = loadOptions(a.config);
+  const KittiSequence seq = KittiSequence::open(a.sequence);
+  const int n = a.frames > 0 ? std::min(a.frames, seq.size()) : seq.size();
+  IncrementalEstimator est(seq.rig(), o.estimator);
+  DemExporter::makeDirectories(a.out);
+  std::ofstream timing(a.out + "/timing.csv");
+  timing << "frame,ms\n";
+  std::ofstream frames(a.out + "/frames.csv");
+  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,message\n";
+  std::vector<Eigen::Isometry3d> poses;
+  std::vector<double> stamps, ms_all;
+  std::vector<Eigen::Vector2d> xy;
+  int failures = 0, rejected = 0;
+  cv::Mat disparity0, left0;
+  for (int i = 0; i < n; ++i) {
+    cv::Mat left, right;
+    seq.read(i, &left, &right);
+    const FrameResult fr = est.processFrame(left, right, seq.stamp(i));
+    if (i == 0 && est.initialized()) {
+      disparity0 = est.surfaceDisparity(fr.ground_T_camera);
+      left0 = left;
+    }
+    failures += fr.status == FrameStatus::kFailed;
+    rejected += fr.status == FrameStatus::kRejectedInput;
+    poses.push_back(fr.camera0_T_camera);
+    stamps.push_back(seq.stamp(i));
+    ms_all.push_back(fr.time_ms);
+    if (est.initialized()) xy.push_back(fr.ground_T_camera.translation().head<2>());
+    timing << i << "," << fr.time_ms << "\n";
+    std::string msg = fr.message;
+    std::replace(msg.begin(), msg.end(), ',', ';');
+    frames << i << "," << seq.stamp(i) << "," << toString(fr.status) << "," << fr.time_ms << ","
+           << fr.median_abs_residual_grey << "," << fr.fused_vertices << "," << fr.obstacle_pixels << ","
+           << fr.photometric[0].gain << "," << fr.photometric[0].bias_grey << "," << msg << "\n";
+    if (!a.quiet) {
+      const Eigen::Vector3d t = fr.camera0_T_camera.translation();
+      std::printf("frame %4d/%d %7.1f ms  %-14s  x %7.2f y %7.2f z %7.2f m%s%s\n", i + 1, n, fr.time_ms,
+                  toString(fr.status), t.x(), t.y(), t.z(), fr.message.empty() ? "" : "  ", fr.message.c_str());
+      std::fflush(stdout);
+    }
+  }
+  if (!est.initialized()) throw std::runtime_error("no frame could initialize the map (see frames.csv)");
+  TrajectoryWriter::writeKitti(a.out + "/trajectory_kitti.txt", poses);
+  TrajectoryWriter::writeTum(a.out + "/trajectory_tum.txt", stamps, poses);
+  const ElevationMap& map = est.map();
+  DemExport dem;
+  dem.grid = map.knownBounds();
+  dem.elevation = map.layer(ElevationMap::Layer::kElevation, dem.grid);
+  dem.variance = map.layer(ElevationMap::Layer::kVariance, dem.grid);
+  dem.traversability = TraversabilityFilter(o.traversability).compute(dem.grid, dem.elevation).traversability;
+  dem.ground_T_camera0 = est.groundTCamera0();
+  dem.trajectory_xy = xy;
+  dem.extra = {{"mode", "incremental (sequence)"}, {"sequence", a.sequence}};
+  DemExporter::write(a.out, dem);
+  DisparityPng::write(a.out + "/dem_disparity_000000.png", disparity0);
+  writeOverlay(a.out + "/dem_disparity_overlay.png", left0, disparity0);
+  std::vector<double> sorted = ms_all;
+  std::sort(sorted.begin(), sorted.end());
+  const double mean = std::accumulate(ms_all.begin(), ms_all.end(), 0.0) / ms_all.size();
+  const double median = sorted[sorted.size() / 2];
+  std::ostringstream summary;
+  summary << "frames: " << n << "\nfailed: " << failures << "\nrejected_input: " << rejected
+          << "\nrecovered: " << est.recoveries() << "\nmean_ms: " << mean << "\nmedian_ms: " << median
+          << "\npeak_memory_mb: " << peakMemoryMb() << "\nmap_tiles: " << map.tileCount()
+          << "\nmap_memory_mb: " << map.memoryBytes() / 1048576.0 << "\n";
+  std::ofstream(a.out + "/summary.txt") << summary.str();
+  std::printf("%d frames (%d failed, %d rejected), %.1f ms mean, %.1f ms median per frame, peak memory %.0f MB\n", n,
+              failures, rejected, mean, median, peakMemoryMb());
+  std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
+              "mesh.ply, dem_disparity_000000.png, trajectory_kitti.txt, trajectory_tum.txt, timing.csv, "
+              "frames.csv, summary.txt}\n",
+              a.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  try {
+    a = parse(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dem_offline: %s\n%s", e.what(), kUsage);
+    return 2;
+  }
+  try {
+    return a.sequence.empty() ? runPair(a) : runSequence(a);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dem_offline: %s\n", e.what());
+    return 1;
+  }
+}
