@@ -28,8 +28,10 @@ struct IncrementalEstimatorOptions {
   ElevationMapOptions map;                ///< its resolution is forced to stereo.grid_resolution_m
   bool use_map_prior = true;              ///< C_P: tie vertices to their fused map values
   double prior_weight = 1.0;              ///< scales the map information in C_P [-]
-  int temporal_finest_level = 0;          ///< pyramid levels below this use the stereo pair only
-  int iterations_per_level = 5;           ///< Gauss-Newton iterations per level
+  int temporal_finest_level = 1;          ///< pyramid levels below this use the stereo pair only
+  int tracking_levels = 4;                ///< mesh/pyramid levels used per tracked frame (<= mesh_levels)
+  int iterations_per_level = 5;           ///< Gauss-Newton iterations per coarse level (>= 2)
+  int fine_iterations = 3;                ///< ... at pyramid levels 0 and 1
   double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
   double max_speed_m_per_s = 50.0;        ///< faster estimated motion is implausible
   double max_turn_rate_rad_per_s = 1.5;   ///< faster rotation is implausible

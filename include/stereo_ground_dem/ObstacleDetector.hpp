@@ -31,9 +31,9 @@ namespace stereo_ground_dem {
 
 struct ObstacleDetectorOptions {
   bool enabled = true;
-  int level = 1;                       ///< pyramid level of the test
-  int window_width_px = 5;             ///< window at that level [px]
-  int window_height_px = 9;            ///< [px]; taller than wide: the slant of the ground shows
+  int level = 2;                       ///< pyramid level of the test
+  int window_width_px = 3;             ///< window at that level [px]
+  int window_height_px = 7;            ///< [px]; taller than wide: the slant of the ground shows
   double min_obstacle_height_m = 0.25; ///< upright surfaces must stand at least this high
   double camera_height_m = 1.65;       ///< nominal camera height, converts the above to disparity
   double margin_px = 0.5;              ///< extra disparity margin at the test level [px]
@@ -49,7 +49,7 @@ struct ObstacleDetectorOptions {
 struct ObstacleMask {
   std::vector<cv::Mat> excluded;  ///< per pyramid level, CV_8U, 255 = obstacle pixel
   cv::Mat disparity;              ///< at the test level: obstacle disparity in level-0 pixels, 0 = none
-  int level = 0;                  ///< the test level
+  int level = 2;                  ///< the test level
   int pixels = 0;                 ///< obstacle pixels at the test level
 };
 

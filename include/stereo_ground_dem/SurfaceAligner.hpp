@@ -43,6 +43,7 @@ struct SurfaceAlignerOptions {
   double converged_height_step_m = 5e-4;   ///< stop when the largest height update is below [m]
   double converged_translation_m = 1e-4;   ///< ... and the motion update below [m]
   double converged_rotation_rad = 1e-5;    ///< ... and [rad]
+  double converged_relative_decrease = 2e-4;  ///< or when a step lowers the cost by less than this fraction
   int border_margin_px = 2;                ///< reference pixels this close to the border are unused
   double dark_level_grey = 1.5;            ///< reference / target values at or below: not used
   double saturated_level_grey = 253.5;     ///< values at or above: not used
@@ -57,6 +58,7 @@ struct SurfaceAlignerOptions {
   LinearSolver linear_solver = LinearSolver::kConjugateGradient;
   double cg_tolerance = 1e-4;              ///< relative residual of the CG solves
   int cg_max_iterations = 400;
+  int cg_min_unknowns = 400;               ///< smaller systems are factorized (faster there)
 
   bool isValid(std::string* why) const;
 };
@@ -102,6 +104,8 @@ struct AlignmentProblem {
   /// Optional per pyramid level: reference pixels not to use (CV_8U, nonzero = excluded), e.g.
   /// obstacles found by the ObstacleDetector.
   const std::vector<cv::Mat>* excluded = nullptr;
+  /// Compute AlignmentReport::motion_information at the final state (one extra factorization).
+  bool want_motion_information = false;
 };
 
 struct AlignmentReport {
@@ -126,7 +130,8 @@ struct AlignmentReport {
   /// (information about the height) [1/m^2], and the number of pixels in its triangles.
   Eigen::VectorXd vertex_information;
   Eigen::VectorXi vertex_pixels;
-  /// Information of the motion (6x6, data term, heights marginalized) if motion was estimated.
+  /// Information of the motion (6x6, heights marginalized) if motion was estimated and
+  /// AlignmentProblem::want_motion_information was set.
   Matrix6d motion_information = Matrix6d::Zero();
 };
 

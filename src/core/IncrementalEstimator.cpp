@@ -32,10 +32,11 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   m.resolution_m = stereo.grid_resolution_m;
   if (!m.isValid(&w)) return bad("map: " + w);
   if (!(prior_weight >= 0.0)) return bad("prior_weight must be >= 0");
-  if (temporal_finest_level < 0 || temporal_finest_level >= stereo.mesh_levels) {
-    return bad("temporal_finest_level must be in 0..mesh_levels-1");
+  if (tracking_levels < 1 || tracking_levels > stereo.mesh_levels) return bad("tracking_levels must be in 1..mesh_levels");
+  if (temporal_finest_level < 0 || temporal_finest_level >= tracking_levels) {
+    return bad("temporal_finest_level must be in 0..tracking_levels-1");
   }
-  if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
+  if (iterations_per_level < 1 || fine_iterations < 1) return bad("iterations_per_level and fine_iterations must be >= 1");
   if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
   if (!(max_speed_m_per_s > 0.0) || !(max_turn_rate_rad_per_s > 0.0)) return bad("motion limits must be > 0");
   if (!(max_height_jump_m > 0.0) || !(max_jump_fraction > 0.0)) return bad("height-jump limits must be > 0");
@@ -357,7 +358,10 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   ao.max_iterations = options_.iterations_per_level;
   SurfaceAlignerOptions ao_motion = ao;
   ao_motion.estimate_motion = !recover;
+  SurfaceAlignerOptions ao_fine = ao, ao_motion_fine = ao_motion;
+  ao_fine.max_iterations = ao_motion_fine.max_iterations = options_.fine_iterations;
   const SurfaceAligner aligner_static(ao), aligner_motion(ao_motion);
+  const SurfaceAligner aligner_static_fine(ao_fine), aligner_motion_fine(ao_motion_fine);
 
   const auto t_obst = std::chrono::steady_clock::now();
   const ObstacleMask obstacles =
@@ -371,7 +375,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   prob.prior = (options_.use_map_prior && !recover) ? &prior : nullptr;
   prob.excluded = &obstacles.excluded;
   AlignmentReport last;
-  for (int l = so.mesh_levels - 1; l >= 0; --l) {
+  for (int l = std::min(so.mesh_levels, options_.tracking_levels) - 1; l >= 0; --l) {
     prob.level = l;
     const bool temporal = !recover && l >= options_.temporal_finest_level;
     // The photometric state is per target; keep the three slots and pass the used subset.
@@ -385,7 +389,10 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
     stereo_.levelBasis(window, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
     prob.basis = basis.size() > 0 ? &basis : nullptr;
-    last = (temporal ? aligner_motion : aligner_static).align(prob, level_state);
+    prob.want_motion_information = temporal && l == options_.temporal_finest_level;
+    const SurfaceAligner& aligner = l >= 2 ? (temporal ? aligner_motion : aligner_static)
+                                           : (temporal ? aligner_motion_fine : aligner_static_fine);
+    last = aligner.align(prob, level_state);
     res.reports.push_back(last);
     state.camera_T_ground = level_state.camera_T_ground;
     state.heights = level_state.heights;

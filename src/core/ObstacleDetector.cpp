@@ -105,35 +105,37 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     float* t = thr.ptr<float>(v);
     for (int u = 0; u < w; ++u) t[u] = d[u] > 0.0f ? static_cast<float>(d[u] * ratio + o.margin_px) : 1e30f;
   }
-  cv::Mat diff(h, w, CV_32F), vmask(h, w, CV_32F), sum_d, cnt_d;
+  // Rows without ground (above the horizon) are skipped.
+  int row0 = h, row1 = -1;
+  for (int v = 0; v < h; ++v) {
+    if (cv::countNonZero(dg.row(v) > 0.0f) > 0) {
+      row0 = std::min(row0, v);
+      row1 = std::max(row1, v);
+    }
+  }
+  if (row1 < row0) return out;
+  const int hw = o.window_width_px / 2, hh = o.window_height_px / 2;
+  const int r0 = std::max(0, row0 - hh), r1 = std::min(h - 1, row1 + hh);
+  const cv::Range rows(r0, r1 + 1);
+  const float inv_area = 1.0f / static_cast<float>(win.area());
+  cv::Mat diff(h, w, CV_32F, cv::Scalar(0.0f)), sum_d;
   for (int d = 1; d <= dmax; ++d) {
-    for (int v = 0; v < h; ++v) {
+    for (int v = r0; v <= r1; ++v) {
       const float* lr = l.ptr<float>(v);
       const float* ar = a.ptr<float>(v);
       float* df = diff.ptr<float>(v);
-      float* vm = vmask.ptr<float>(v);
-      for (int u = 0; u < w; ++u) {
-        if (u - d >= 0) {
-          df[u] = std::abs(lr[u] - ar[u - d]);
-          vm[u] = 1.0f;
-        } else {
-          df[u] = 0.0f;
-          vm[u] = 0.0f;
-        }
-      }
+      for (int u = d; u < w; ++u) df[u] = std::abs(lr[u] - ar[u - d]);
     }
-    cv::boxFilter(diff, sum_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
-    cv::boxFilter(vmask, cnt_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    cv::boxFilter(diff.rowRange(rows), sum_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_REPLICATE);
     const float df = static_cast<float>(d);
-    for (int v = 0; v < h; ++v) {
-      const float* s = sum_d.ptr<float>(v);
-      const float* c = cnt_d.ptr<float>(v);
+    for (int v = row0; v <= row1; ++v) {
+      const float* s = sum_d.ptr<float>(v - r0);
       const float* t = thr.ptr<float>(v);
       float* b = best.ptr<float>(v);
       float* bd = best_d.ptr<float>(v);
-      for (int u = 0; u < w; ++u) {
-        if (df < t[u] || c[u] < 0.5f * win.area()) continue;
-        const float m = s[u] / c[u];
+      for (int u = d + hw; u < w; ++u) {  // windows reaching past the left border are skipped
+        if (df < t[u]) continue;
+        const float m = s[u] * inv_area;
         if (m < b[u]) {
           b[u] = m;
           bd[u] = df;
@@ -163,7 +165,6 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
   // the upright surface at the obstacle's disparity explains the pixel's window at least as well
   // as the ground. This covers the low parts (bumpers, the base of a pole) whose disparity is too
   // close to the ground's for the test above.
-  const int hw = o.window_width_px / 2, hh = o.window_height_px / 2;
   constexpr int kMinRun = 3;  // a foot is sought only below an upright run of this many pixels
   auto uprightCost = [&](int u, int v, int d) {
     float sum = 0.0f;

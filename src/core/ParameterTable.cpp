@@ -54,8 +54,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("robust_scale_grey", &a.robust_scale_grey, "Cauchy scale of the photometric residual, <= 0 least squares [grey]", true);
   d("image_noise_std_grey", &a.image_noise_std_grey, "photometric noise sigma, sets the chi^2 scale [grey]", true);
   d("presmooth_sigma_px", &s.presmooth_sigma_px, "Gaussian blur of full-resolution images [px]");
-  i("iterations_per_level", &e.iterations_per_level, "Gauss-Newton iterations per level, incremental mode", true);
+  i("iterations_per_level", &e.iterations_per_level, "Gauss-Newton iterations per coarse level, incremental mode", true);
+  i("fine_iterations", &e.fine_iterations, "Gauss-Newton iterations at pyramid levels 0 and 1, incremental mode", true);
   i("stereo_iterations_per_level", &s.iterations_per_level, "Gauss-Newton iterations per level, stereo mode", true);
+  i("tracking_levels", &e.tracking_levels, "mesh/pyramid levels used for each tracked frame (<= mesh_levels)", true);
   i("temporal_finest_level", &e.temporal_finest_level, "finest pyramid level of the temporal pairs and motion", true);
   i("num_threads", &a.num_threads, "threads of the pixel loop");
   b("use_map_prior", &e.use_map_prior, "tie vertices to their fused map values (C_P)", true);

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <tbb/parallel_for.h>
@@ -93,6 +95,9 @@ struct Chunk {
 
 struct Evaluation {
   std::vector<Chunk> chunks;  ///< chunks[0] holds the merged sums after evaluate()
+  /// Triangles that own at least one pixel get a slot; accumulators are per slot.
+  std::vector<int> slot_of;   ///< triangle -> slot or -1
+  std::vector<int> slot_tri;  ///< slot -> triangle
   double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
   double total() const { return data_cost + smoothness_cost + prior_cost; }
   const Chunk& sums() const { return chunks[0]; }
@@ -138,11 +143,15 @@ inline float bilinear(const cv::Mat& img, float u, float v) {
 /// only decides whether a step is accepted, and both sides of that comparison use this function.
 inline float fastLog1p(float x) {
   const float y = 1.0f + x;
-  int exponent;
-  const float mant = std::frexp(y, &exponent);  // y = mant * 2^e, mant in [0.5, 1)
+  std::uint32_t bits;
+  std::memcpy(&bits, &y, sizeof(bits));
+  const int exponent = static_cast<int>((bits >> 23) & 0xff) - 126;  // y = mant * 2^e, mant in [0.5, 1)
+  bits = (bits & 0x007fffffu) | 0x3f000000u;
+  float mant;
+  std::memcpy(&mant, &bits, sizeof(mant));
   const float t = (mant - 0.70710678f) / (mant + 0.70710678f);
   const float t2 = t * t;
-  // ln(mant) = ln(sqrt(1/2)) + 2 atanh(t)
+  // ln(mant) = ln(sqrt(1/2)) + 2 atanh(t), |t| < 0.172
   const float ln_m = -0.34657359f + 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
   return ln_m + 0.69314718f * static_cast<float>(exponent);
 }
@@ -215,7 +224,6 @@ class LevelSolver {
     const Eigen::Matrix3d k = rig_.K();
     const Eigen::Matrix3d kinv = k.inverse();
     auto& hom = ws_->homographies;
-    hom.resize(np * nt);
     TriangleRasterizer& raster = ws_->raster;
     raster.reset(width_, height_, opt_.border_margin_px);
     for (size_t i = 0; i < nt; ++i) {
@@ -226,7 +234,6 @@ class LevelSolver {
       // front-facing: the camera is above the triangle's plane
       if (!(cam_pos.z() - (pqc.x() * cam_pos.x() + pqc.y() * cam_pos.y() + pqc.z()) > 1e-3)) continue;
       if (!PlaneGeometry::cameraPlane(ctg, pqc, &t.m)) continue;
-      t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
       TriangleRasterizer::Triangle rt;
       bool ok = true;
       for (int a = 0; a < 3; ++a) {
@@ -246,11 +253,32 @@ class LevelSolver {
       rt.id = static_cast<int>(i);
       t.drawn = true;
       raster.draw(rt);
+    }
+    // Slots for the triangles that won pixels; their Jacobian pieces and homographies.
+    ev->slot_of.assign(nt, -1);
+    ev->slot_tri.clear();
+    const cv::Mat& labels = raster.labels();
+    for (int v = 0; v < height_; ++v) {
+      const int* lab = labels.ptr<int>(v);
+      for (int u = raster.rowBegin(v); u <= raster.rowEnd(v); ++u) {
+        const int ti = lab[u];
+        if (ti >= 0 && ev->slot_of[static_cast<size_t>(ti)] < 0) {
+          ev->slot_of[static_cast<size_t>(ti)] = static_cast<int>(ev->slot_tri.size());
+          ev->slot_tri.push_back(ti);
+        }
+      }
+    }
+    const size_t ns = ev->slot_tri.size();
+    hom.resize(np * ns);
+    for (size_t k2 = 0; k2 < ns; ++k2) {
+      TriangleGeometry& t = tris_[static_cast<size_t>(ev->slot_tri[k2])];
+      const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
+      t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, t.heights_to_plane * z) * t.heights_to_plane;
       for (size_t j = 0; j < np; ++j) {
         const Eigen::Matrix3d h = k * (pc[j].target_T_reference.linear() +
                                        pc[j].target_T_reference.translation() * t.m.transpose()) *
                                   kinv;
-        auto& hh = hom[j * nt + i];
+        auto& hh = hom[j * ns + k2];
         for (int a = 0; a < 9; ++a) hh[static_cast<size_t>(a)] = static_cast<float>(h(a / 3, a % 3));
       }
     }
@@ -274,8 +302,8 @@ class LevelSolver {
     ev->chunks.resize(static_cast<size_t>(threads_));
     auto work = [&](int c) {
       Chunk& ch = ev->chunks[static_cast<size_t>(c)];
-      ch.reset(strides_, nt);
-      accumulateRows(pc, bounds[static_cast<size_t>(c)], bounds[static_cast<size_t>(c) + 1], &ch);
+      ch.reset(strides_, ns);
+      accumulateRows(pc, *ev, bounds[static_cast<size_t>(c)], bounds[static_cast<size_t>(c) + 1], &ch);
     };
     if (threads_ > 1) {
       tbb::task_arena arena(threads_);
@@ -293,7 +321,7 @@ class LevelSolver {
         for (size_t i = 0; i < n; ++i) dst[i] += src[i];
         sum.pair[j].add(o.pair[j]);
       }
-      for (size_t i = 0; i < nt; ++i) sum.tri_pixels[i] += o.tri_pixels[i];
+      for (size_t i = 0; i < ns; ++i) sum.tri_pixels[i] += o.tri_pixels[i];
       sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
     }
     ev->data_cost = 0.0;
@@ -315,9 +343,10 @@ class LevelSolver {
 
   /// The pixel loop over rows [v0, v1): residuals, robust weights and the inverse compositional
   /// Jacobians accumulated per triangle and pair.
-  void accumulateRows(const std::vector<PairContext>& pc, int v0, int v1, Chunk* ch) const {
+  void accumulateRows(const std::vector<PairContext>& pc, const Evaluation& ev, int v0, int v1, Chunk* ch) const {
     const size_t np = pc.size();
-    const size_t nt = tris_.size();
+    const size_t ns = ev.slot_tri.size();
+    const int* slot_of = ev.slot_of.data();
     const TriangleRasterizer& raster = ws_->raster;
     const auto& hom = ws_->homographies;
     const bool robust = opt_.robust_scale_grey > 0.0;
@@ -344,8 +373,9 @@ class LevelSolver {
       const float y = (static_cast<float>(v) - cy) / fy;
       const float vf = static_cast<float>(v);
       for (int u = b; u <= e_col; ++u) {
-        const int ti = lab[u];
-        if (ti < 0) continue;
+        const int tl = lab[u];
+        if (tl < 0) continue;
+        const int ti = slot_of[tl];  // the slot: accumulators and homographies are per slot
         const float i0 = i0row[u];
         if (i0 <= dark || i0 >= sat || (exrow && exrow[u])) continue;
         ch->tri_pixels[static_cast<size_t>(ti)]++;
@@ -355,7 +385,7 @@ class LevelSolver {
         const double c0 = gfu, c1 = gfv, c2v = -(gfu * x + gfv * y);
         for (size_t j = 0; j < np; ++j) {
           const PairContext& p = pc[j];
-          const auto& h = hom[j * nt + static_cast<size_t>(ti)];
+          const auto& h = hom[j * ns + static_cast<size_t>(ti)];
           const cv::Mat& img = *p.image;
           PairAccumulator& pa = ch->pair[j];
           float uj, vj;
@@ -413,7 +443,7 @@ class LevelSolver {
             pa.pe(1) += w * e;
           }
           if (p.world) {
-            const double rho_u = tris_[static_cast<size_t>(ti)].m.dot(Eigen::Vector3d(x, y, 1.0));
+            const double rho_u = tris_[static_cast<size_t>(tl)].m.dot(Eigen::Vector3d(x, y, 1.0));
             const double jm[6] = {rho_u * c0, rho_u * c1, rho_u * c2v, y * c2v - c1, c0 - x * c2v, x * c1 - y * c0};
             double* am = a + 15;
             for (int c = 0; c < 6; ++c) {
@@ -448,7 +478,52 @@ class LevelSolver {
   };
 
   /// Builds and solves the normal equations of the Gauss-Newton step at the evaluated state.
-  Step solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report) {
+  /// Preconditioned conjugate gradients for [a b; b^T d] [x; y] = [r; q] with a sparse SPD,
+  /// preconditioner blockdiag(diag(a), d). Returns false if it did not converge.
+  bool augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, const Eigen::MatrixXd& d, const Eigen::VectorXd& r,
+                   const Eigen::VectorXd& q, Eigen::VectorXd* x, Eigen::VectorXd* y) const {
+    const Eigen::Index n = a.rows(), m = d.rows();
+    const Eigen::VectorXd inv_diag = a.diagonal().cwiseMax(1e-300).cwiseInverse();
+    const Eigen::LDLT<Eigen::MatrixXd> dinv(d);
+    if (m > 0 && (dinv.info() != Eigen::Success || !dinv.isPositive())) return false;
+    auto apply = [&](const Eigen::VectorXd& pc, const Eigen::VectorXd& pg, Eigen::VectorXd* oc, Eigen::VectorXd* og) {
+      *oc = a * pc;
+      if (m > 0) {
+        *oc += b * pg;
+        *og = b.transpose() * pc + d * pg;
+      }
+    };
+    x->setZero(n);
+    y->setZero(m);
+    Eigen::VectorXd rc = r, rg = q, zc = inv_diag.cwiseProduct(rc), zg = m > 0 ? Eigen::VectorXd(dinv.solve(rg)) : rg;
+    Eigen::VectorXd pc = zc, pg = zg, ac, ag(m);
+    double rz = rc.dot(zc) + rg.dot(zg);
+    const double b_norm = std::sqrt(r.squaredNorm() + q.squaredNorm());
+    if (b_norm == 0.0) return true;
+    for (int it = 0; it < opt_.cg_max_iterations; ++it) {
+      apply(pc, pg, &ac, &ag);
+      const double pap = pc.dot(ac) + (m > 0 ? pg.dot(ag) : 0.0);
+      if (!(pap > 0.0)) return false;
+      const double alpha = rz / pap;
+      *x += alpha * pc;
+      rc -= alpha * ac;
+      if (m > 0) {
+        *y += alpha * pg;
+        rg -= alpha * ag;
+      }
+      if (std::sqrt(rc.squaredNorm() + rg.squaredNorm()) < opt_.cg_tolerance * b_norm) return true;
+      zc = inv_diag.cwiseProduct(rc);
+      if (m > 0) zg = dinv.solve(rg);
+      const double rz_new = rc.dot(zc) + (m > 0 ? rg.dot(zg) : 0.0);
+      const double beta = rz_new / rz;
+      rz = rz_new;
+      pc = zc + beta * pc;
+      if (m > 0) pg = zg + beta * pg;
+    }
+    return false;
+  }
+
+  Step solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report, bool need_schur = false) {
     const Chunk& sum = ev.sums();
     const std::vector<PairContext> pc = pairs(s);
     const int na = activeCount();
@@ -481,10 +556,10 @@ class LevelSolver {
           hgg.block<2, 6>(pi, 0) += ks * pa.mp.transpose();
         }
       }
-      for (size_t i = 0; i < tris_.size(); ++i) {
-        const TriangleGeometry& t = tris_[i];
-        if (!t.drawn || sum.tri_pixels[i] == 0) continue;
-        const double* acc = sum.tri[j].data() + i * static_cast<size_t>(stride);
+      for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
+        const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
+        if (sum.tri_pixels[k2] == 0) continue;
+        const double* acc = sum.tri[j].data() + k2 * static_cast<size_t>(stride);
         Eigen::Matrix3d dd;
         dd << acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5];
         const Eigen::Vector3d de(acc[6], acc[7], acc[8]);
@@ -577,40 +652,35 @@ class LevelSolver {
       gc = basis_t_ * gz;
       hcg = basis_t_ * hzg;
     }
-    // H^{-1} [hcg, gc]: conjugate gradients, or the sparse Cholesky factorization.
-    Eigen::MatrixXd rhs(hcc->rows(), ng + 1);
-    if (ng > 0) rhs.leftCols(ng) = hcg;
-    rhs.col(ng) = gc;
-    Eigen::MatrixXd sol;
-    bool solved = false;
-    if (opt_.linear_solver == SurfaceAlignerOptions::LinearSolver::kConjugateGradient) {
-      cg_.setTolerance(opt_.cg_tolerance);
-      cg_.setMaxIterations(opt_.cg_max_iterations);
-      cg_.compute(*hcc);
-      sol.resize(rhs.rows(), rhs.cols());
-      solved = cg_.info() == Eigen::Success;
-      for (int c = 0; c < rhs.cols() && solved; ++c) {
-        sol.col(c) = cg_.solve(rhs.col(c));
-        solved = cg_.info() == Eigen::Success && sol.col(c).allFinite();
+    // Conjugate gradients on the whole system [hcc hcg; hcg^T hgg] (one run, block-Jacobi
+    // preconditioner), or the Schur complement on the globals with the sparse Cholesky
+    // factorization of hcc (small systems, fallback, and when the marginal information of the
+    // motion is wanted).
+    const bool use_cg = opt_.linear_solver == SurfaceAlignerOptions::LinearSolver::kConjugateGradient &&
+                        hcc->rows() >= opt_.cg_min_unknowns && !need_schur;
+    if (use_cg) {
+      Eigen::VectorXd xc, xg;
+      if (augmentedCg(*hcc, hcg, hgg, gc, gg, &xc, &xg)) {
+        step.dtheta = -xc;
+        step.dglobal = -xg;
+        step.ok = step.dtheta.allFinite() && step.dglobal.allFinite();
+        if (step.ok) return step;
       }
-      if (!solved) report->cg_fallbacks++;
+      report->cg_fallbacks++;
     }
-    if (!solved) {
-      if (!analyzed_ || analyzed_nnz_ != hcc->nonZeros()) {
-        chol_.analyzePattern(*hcc);
-        analyzed_ = true;
-        analyzed_nnz_ = hcc->nonZeros();
-      }
-      chol_.factorize(*hcc);
-      if (chol_.info() != Eigen::Success) {
-        report->degenerate = true;
-        return step;
-      }
-      sol = chol_.solve(rhs);
+    if (!analyzed_ || analyzed_nnz_ != hcc->nonZeros()) {
+      chol_.analyzePattern(*hcc);
+      analyzed_ = true;
+      analyzed_nnz_ = hcc->nonZeros();
+    }
+    chol_.factorize(*hcc);
+    if (chol_.info() != Eigen::Success) {
+      report->degenerate = true;
+      return step;
     }
     if (ng > 0) {
-      const Eigen::MatrixXd hinv_hcg = sol.leftCols(ng);
-      const Eigen::VectorXd hinv_gc = sol.col(ng);
+      const Eigen::MatrixXd hinv_hcg = chol_.solve(hcg);
+      const Eigen::VectorXd hinv_gc = chol_.solve(gc);
       const Eigen::MatrixXd schur = hgg - hcg.transpose() * hinv_hcg;
       const Eigen::LDLT<Eigen::MatrixXd> ldlt(schur);
       if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
@@ -624,7 +694,7 @@ class LevelSolver {
         report->motion_information = schur.topLeftCorner<6, 6>();
       }
     } else {
-      step.dtheta = -sol.col(0);
+      step.dtheta = chol_.solve(-gc);
     }
     step.ok = step.dtheta.allFinite() && step.dglobal.allFinite();
     if (!step.ok) report->degenerate = true;
@@ -668,10 +738,9 @@ class LevelSolver {
 
   void fillPixels(const Evaluation& ev, AlignmentReport* report) const {
     report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
-    for (size_t i = 0; i < tris_.size(); ++i) {
-      for (int a = 0; a < 3; ++a) {
-        report->vertex_pixels[tris_[i].vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[i];
-      }
+    for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
+      const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
+      for (int a = 0; a < 3; ++a) report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
     }
   }
 
@@ -850,7 +919,6 @@ class LevelSolver {
   std::vector<int> diag_index_;
   Eigen::VectorXd smooth_values_;
   Eigen::SimplicialLDLT<SpMat> chol_;
-  Eigen::ConjugateGradient<SpMat, Eigen::Lower | Eigen::Upper> cg_;
   bool analyzed_ = false;
   Eigen::Index analyzed_nnz_ = 0;
   int global_count_ = 0;
@@ -934,9 +1002,14 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
       }
     }
     if (!accepted) break;
+    const double decrease = ev->total() - trial_ev->total();
     state = trial;
     std::swap(ev, trial_ev);
     report.accepted_steps++;
+    if (decrease < options_.converged_relative_decrease * ev->total()) {
+      report.converged = true;
+      break;
+    }
     bool small = max_dz < options_.converged_height_step_m;
     if (options_.estimate_motion) {
       small = small && alpha * step.dglobal.head<3>().norm() < options_.converged_translation_m &&
@@ -946,6 +1019,13 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
       report.converged = true;
       break;
     }
+  }
+  if (options_.estimate_motion && problem.want_motion_information) {
+    t0 = Clock::now();
+    AlignmentReport tmp;
+    solver.solve(state, *ev, &tmp, true);  // the Schur complement at the final state
+    report.motion_information = tmp.motion_information;
+    report.solve_ms += ms(t0, Clock::now());
   }
   // ev holds the evaluation at the final state; vertex_information comes from the last
   // linearization (the state before the last accepted step), which differs only to second order.
