@@ -29,7 +29,7 @@ struct IncrementalEstimatorOptions {
   bool use_map_prior = true;              ///< C_P: tie vertices to their fused map values
   double prior_weight = 1.0;              ///< scales the map information in C_P [-]
   int temporal_finest_level = 1;          ///< pyramid levels below this use the stereo pair only
-  int tracking_levels = 4;                ///< mesh/pyramid levels used per tracked frame (<= mesh_levels)
+  int tracking_levels = 2;                ///< mesh/pyramid levels used per tracked frame (<= mesh_levels)
   int iterations_per_level = 5;           ///< Gauss-Newton iterations per coarse level (>= 2)
   int fine_iterations = 3;                ///< ... at pyramid levels 0 and 1
   double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
@@ -39,6 +39,11 @@ struct IncrementalEstimatorOptions {
   double max_jump_fraction = 0.15;        ///< ... for more than this fraction of them
   double max_outside_fraction = 0.6;      ///< more samples warped outside the images: failure
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
+  int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
+  int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
+  double max_residual_ratio = 3.0;        ///< median residual above ratio * the usual level ...
+  double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
+  int min_samples = 500;                  ///< fewer pixel samples in the final level: failure
   /// When the velocity is unknown (first tracked frame, after a failure), translations along the
   /// optical axis from motion_search_min_m to motion_search_max_m (per nominal frame period) are
   /// tried at the coarsest level and the cheapest starts the Gauss-Newton: far from the minimum
@@ -119,6 +124,12 @@ class IncrementalEstimator {
   PhotometricParams statsPhotometric(const ImagePyramid& ref, const ImagePyramid& other,
                                      const Eigen::Isometry3d& camera_T_ground) const;
   Eigen::Isometry3d predict(double stamp_s) const;
+  FrameResult& trackFrame(double stamp_s, FrameResult* res, std::unique_ptr<ImagePyramid>& pl,
+                          std::unique_ptr<ImagePyramid>& pr);
+  FrameResult& recoverFrame(const ImagePyramid& left, const ImagePyramid& right, double stamp_s, FrameResult* res,
+                            std::unique_ptr<ImagePyramid>& pl, std::unique_ptr<ImagePyramid>& pr);
+  void advance(const Eigen::Isometry3d& ground_T_camera, double stamp_s, std::unique_ptr<ImagePyramid>& pl,
+               std::unique_ptr<ImagePyramid>& pr, const std::vector<PhotometricParams>& photometric);
   Eigen::Isometry3d searchForwardMotion(const ImagePyramid& left, const GroundGrid& window,
                                         const Eigen::VectorXd& heights, const Eigen::Isometry3d& predicted,
                                         double dt) const;
@@ -132,6 +143,7 @@ class IncrementalEstimator {
   Eigen::Isometry3d ground_T_camera_ = Eigen::Isometry3d::Identity();  ///< last good frame
   Vector6d velocity_ = Vector6d::Zero();  ///< twist per second, camera frame (left-multiplied)
   bool velocity_known_ = false;
+  double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
   double last_good_stamp_ = 0.0;
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
   cv::Mat last_left_level0_;   ///< for the frozen-frame test

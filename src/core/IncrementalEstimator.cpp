@@ -42,6 +42,11 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!(max_height_jump_m > 0.0) || !(max_jump_fraction > 0.0)) return bad("height-jump limits must be > 0");
   if (!(max_outside_fraction > 0.0 && max_outside_fraction <= 1.0)) return bad("max_outside_fraction must be in (0, 1]");
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
+  if (prealign_level < 0 || prealign_iterations < 0) return bad("prealign_level and prealign_iterations must be >= 0");
+  if (!(max_residual_ratio > 1.0) || !(max_residual_increase_grey > 0.0)) {
+    return bad("max_residual_ratio must exceed 1 and max_residual_increase_grey be > 0");
+  }
+  if (min_samples < 0) return bad("min_samples must be >= 0");
   if (!(motion_search_step_m > 0.0) || !(motion_search_max_m >= motion_search_min_m)) {
     return bad("need motion_search_step_m > 0 and motion_search_max_m >= motion_search_min_m");
   }
@@ -302,10 +307,8 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     initialized_ = true;
     velocity_.setZero();
     velocity_known_ = false;
-    last_good_stamp_ = stamp_s;
-    prev_left_ = std::move(pl);
-    prev_right_ = std::move(pr);
-    last_photometric_ = {sr.photometric, PhotometricParams(), PhotometricParams()};
+    residual_level_ = sr.median_abs_residual_grey;
+    advance(sr.ground_T_camera, stamp_s, pl, pr, {sr.photometric});
     res.status = FrameStatus::kInitialized;
     res.ground_T_camera = sr.ground_T_camera;
     res.photometric = last_photometric_;
@@ -315,30 +318,27 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   }
 
   // ---- incremental step
+  if (consecutive_failures_ >= options_.reinit_after_failures) return finish(recoverFrame(*pl, *pr, stamp_s, &res, pl, pr));
+  return finish(trackFrame(stamp_s, &res, pl, pr));
+}
+
+FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, std::unique_ptr<ImagePyramid>& pl,
+                                              std::unique_ptr<ImagePyramid>& pr) {
+  FrameResult& res = *out;
   const StereoEstimatorOptions& so = options_.stereo;
   Eigen::Isometry3d predicted = predict(stamp_s);  // camera_T_ground
-  double dt_pred = stamp_s - last_good_stamp_;
-  if (!(dt_pred > 0.0)) dt_pred = options_.nominal_frame_period_s;
+  double dt = stamp_s - last_good_stamp_;
+  if (!(dt > 0.0)) dt = options_.nominal_frame_period_s;
   GroundGrid window = viewWindow(predicted);
   Eigen::VectorXd heights, info;
   initialHeights(window, predicted, &heights, &info);
   if (!velocity_known_) {
-    predicted = searchForwardMotion(*pl, window, heights, predicted, dt_pred);
+    predicted = searchForwardMotion(*pl, window, heights, predicted, dt);
     window = viewWindow(predicted);
     initialHeights(window, predicted, &heights, &info);
   }
-  res.window = window;
-  HeightPrior prior;
-  prior.mean = heights;
-  prior.information = info * options_.prior_weight;
 
-  const bool recover = consecutive_failures_ >= options_.reinit_after_failures;
-  SurfaceState state;
-  state.camera_T_ground = predicted;
-  state.heights = heights;
   const Eigen::Isometry3d prev_c_T_g = ground_T_camera_.inverse();
-  state.photometric = {statsPhotometric(*pl, *pr, predicted), statsPhotometric(*pl, *prev_left_, predicted),
-                       statsPhotometric(*pl, *prev_right_, predicted)};
   AlignerTarget stereo_t;
   stereo_t.pyramid = pr.get();
   stereo_t.rig_fixed = true;
@@ -350,34 +350,91 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   AlignerTarget prev_r = prev_l;
   prev_r.pyramid = prev_right_.get();
   prev_r.target_T_ground = rigTransform(rig_) * prev_c_T_g;
-
   SurfaceAlignerOptions ao = so.aligner;
   ao.min_depth_m = so.min_range_m;
   ao.max_depth_m = so.max_range_m;
   ao.max_lateral_m = so.max_lateral_m;
-  ao.max_iterations = options_.iterations_per_level;
-  SurfaceAlignerOptions ao_motion = ao;
-  ao_motion.estimate_motion = !recover;
-  SurfaceAlignerOptions ao_fine = ao, ao_motion_fine = ao_motion;
-  ao_fine.max_iterations = ao_motion_fine.max_iterations = options_.fine_iterations;
-  const SurfaceAligner aligner_static(ao), aligner_motion(ao_motion);
-  const SurfaceAligner aligner_static_fine(ao_fine), aligner_motion_fine(ao_motion_fine);
+  ao.estimate_motion = true;
 
+  // ---- 1. motion only, at a coarse level, against the known surface: a wide basin for sudden
+  // pitch and roll changes (a bump, a pothole) that the constant-velocity model does not predict.
+  // Two starts, the constant-velocity prediction and the same translation without its rotation
+  // rate; the cheaper result is kept.
+  SurfaceState state;
+  state.heights = heights;
+  {
+    SurfaceAlignerOptions pre = ao;
+    pre.max_iterations = options_.prealign_iterations;
+    const SurfaceAligner aligner(pre);
+    AlignmentProblem prob;
+    prob.reference = pl.get();
+    prob.rig = &rig_;
+    prob.grid = &window;
+    prob.level = std::min(options_.prealign_level, pl->levels() - 1);
+    prob.targets = {stereo_t, prev_l, prev_r};
+    prob.estimate_heights = false;
+    Vector6d no_turn = velocity_ * dt;
+    no_turn.tail<3>().setZero();
+    const Eigen::Isometry3d starts[2] = {predicted, Se3::exp(no_turn) * prev_c_T_g};
+    double best = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < (velocity_known_ ? 2 : 1); ++k) {
+      SurfaceState s;
+      s.camera_T_ground = starts[k];
+      s.heights = heights;
+      s.photometric = {statsPhotometric(*pl, *pr, starts[k]), statsPhotometric(*pl, *prev_left_, starts[k]),
+                       statsPhotometric(*pl, *prev_right_, starts[k])};
+      const AlignmentReport rep = aligner.align(prob, s);
+      res.reports.push_back(rep);
+      const int samples = rep.valid_pixels + rep.outside_pixels;
+      const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
+      if (cost < best) {
+        best = cost;
+        state.camera_T_ground = s.camera_T_ground;
+        state.photometric = s.photometric;
+      }
+    }
+    if (!std::isfinite(best)) {
+      state.camera_T_ground = predicted;
+      state.photometric = {statsPhotometric(*pl, *pr, predicted), statsPhotometric(*pl, *prev_left_, predicted),
+                           statsPhotometric(*pl, *prev_right_, predicted)};
+    }
+  }
+  const GroundGrid aligned_window = viewWindow(state.camera_T_ground);
+  if (!aligned_window.sameLayout(window)) {
+    window = aligned_window;
+    initialHeights(window, state.camera_T_ground, &heights, &info);
+    state.heights = heights;
+  }
+  res.window = window;
+  HeightPrior prior;
+  prior.mean = heights;
+  prior.information = info * options_.prior_weight;
+
+  // ---- 2. occlusion reasoning at the aligned pose
   const auto t_obst = std::chrono::steady_clock::now();
   const ObstacleMask obstacles =
-      stereo_.detectObstacles(*pl, *pr, window, heights, predicted, state.photometric[0]);
+      stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
   res.obstacle_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_obst).count();
   res.obstacle_pixels = obstacles.pixels;
+
+  // ---- 3. heights, motion and photometry jointly, coarse to fine
+  SurfaceAlignerOptions ao_static = ao;
+  ao_static.estimate_motion = false;
+  ao.max_iterations = ao_static.max_iterations = options_.fine_iterations;
+  SurfaceAlignerOptions ao_coarse = ao, ao_static_coarse = ao_static;
+  ao_coarse.max_iterations = ao_static_coarse.max_iterations = options_.iterations_per_level;
+  const SurfaceAligner aligner_motion(ao), aligner_static(ao_static);
+  const SurfaceAligner aligner_motion_coarse(ao_coarse), aligner_static_coarse(ao_static_coarse);
   AlignmentProblem prob;
   prob.reference = pl.get();
   prob.rig = &rig_;
   prob.grid = &window;
-  prob.prior = (options_.use_map_prior && !recover) ? &prior : nullptr;
+  prob.prior = options_.use_map_prior ? &prior : nullptr;
   prob.excluded = &obstacles.excluded;
   AlignmentReport last;
   for (int l = std::min(so.mesh_levels, options_.tracking_levels) - 1; l >= 0; --l) {
     prob.level = l;
-    const bool temporal = !recover && l >= options_.temporal_finest_level;
+    const bool temporal = l >= options_.temporal_finest_level;
     // The photometric state is per target; keep the three slots and pass the used subset.
     SurfaceState level_state = state;
     if (temporal) {
@@ -390,8 +447,8 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     stereo_.levelBasis(window, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
     prob.basis = basis.size() > 0 ? &basis : nullptr;
     prob.want_motion_information = temporal && l == options_.temporal_finest_level;
-    const SurfaceAligner& aligner = l >= 2 ? (temporal ? aligner_motion : aligner_static)
-                                           : (temporal ? aligner_motion_fine : aligner_static_fine);
+    const SurfaceAligner& aligner = l >= 2 ? (temporal ? aligner_motion_coarse : aligner_static_coarse)
+                                           : (temporal ? aligner_motion : aligner_static);
     last = aligner.align(prob, level_state);
     res.reports.push_back(last);
     state.camera_T_ground = level_state.camera_T_ground;
@@ -408,10 +465,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   res.valid_pixels = last.valid_pixels;
   res.motion_information = last.motion_information;
 
-  // ---- plausibility
-  std::string failure;
-  double dt = stamp_s - last_good_stamp_;
-  if (!(dt > 0.0)) dt = options_.nominal_frame_period_s;
+  // ---- 4. plausibility
   const Vector6d step = Se3::log(state.camera_T_ground * ground_T_camera_);  // prev camera -> current
   const int samples = last.valid_pixels + last.outside_pixels;
   std::vector<uint8_t> update(static_cast<size_t>(window.vertexCount()), 0);
@@ -424,6 +478,8 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
       if (std::abs(state.heights[v] - prior.mean[v]) > options_.max_height_jump_m) ++jumps;
     }
   }
+  const double residual_limit = std::max(options_.max_residual_ratio * residual_level_,
+                                         residual_level_ + options_.max_residual_increase_grey);
   std::ostringstream why;
   if (last.degenerate) {
     why << "normal equations degenerate";
@@ -433,48 +489,127 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     why << "implausible motion: " << step.head<3>().norm() / dt << " m/s";
   } else if (step.tail<3>().norm() / dt > options_.max_turn_rate_rad_per_s) {
     why << "implausible rotation: " << step.tail<3>().norm() / dt << " rad/s";
-  } else if (samples == 0 || last.outside_pixels > options_.max_outside_fraction * samples) {
+  } else if (samples < options_.min_samples || last.outside_pixels > options_.max_outside_fraction * samples) {
     why << "too few pixels overlap between the images (" << last.outside_pixels << " of " << samples
         << " samples outside)";
   } else if (well_known > 20 && jumps > options_.max_jump_fraction * well_known) {
     why << jumps << " of " << well_known << " well-known vertices moved more than " << options_.max_height_jump_m
         << " m";
+  } else if (residual_level_ > 0.0 && last.median_abs_residual_grey > residual_limit) {
+    why << "alignment did not converge: median residual " << last.median_abs_residual_grey << " grey (usual "
+        << residual_level_ << ")";
   }
-  failure = why.str();
-  if (!failure.empty()) {
+  if (!why.str().empty()) {
     ++consecutive_failures_;
     ++failures_total_;
     velocity_known_ = false;
     res.status = FrameStatus::kFailed;
-    res.message = failure;
+    res.message = why.str();
     res.ground_T_camera = predicted.inverse();
-    return finish(res);
+    return res;
   }
 
-  // ---- fuse, advance
-  Eigen::VectorXd fused_prior_info = prob.prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
+  // ---- 5. fuse, advance
+  const Eigen::VectorXd fused_prior_info = prob.prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
   map_.fuse(window, state.heights, fused_prior_info, last.vertex_information, update, res.frame_index);
   res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
-  const Eigen::Isometry3d new_g_T_c = state.camera_T_ground.inverse();
-  if (!recover) {
-    velocity_ = Se3::log(state.camera_T_ground * ground_T_camera_) / dt;
-    velocity_known_ = true;
-  }
-  ground_T_camera_ = new_g_T_c;
+  velocity_ = step / dt;
+  velocity_known_ = true;
+  residual_level_ = residual_level_ > 0.0 ? 0.8 * residual_level_ + 0.2 * last.median_abs_residual_grey
+                                          : last.median_abs_residual_grey;
+  advance(state.camera_T_ground.inverse(), stamp_s, pl, pr, state.photometric);
+  res.status = FrameStatus::kTracked;
+  res.ground_T_camera = ground_T_camera_;
+  return res;
+}
+
+void IncrementalEstimator::advance(const Eigen::Isometry3d& ground_T_camera, double stamp_s,
+                                   std::unique_ptr<ImagePyramid>& pl, std::unique_ptr<ImagePyramid>& pr,
+                                   const std::vector<PhotometricParams>& photometric) {
+  ground_T_camera_ = ground_T_camera;
   last_good_stamp_ = stamp_s;
   prev_left_ = std::move(pl);
   prev_right_ = std::move(pr);
-  std::copy_n(state.photometric.begin(), 3, last_photometric_.begin());
-  res.status = recover ? FrameStatus::kRecovered : FrameStatus::kTracked;
-  if (recover) {
-    ++recoveries_;
-    res.message = "re-initialized from the stereo pair after " + std::to_string(consecutive_failures_) + " failures";
-  }
+  for (size_t j = 0; j < 3 && j < photometric.size(); ++j) last_photometric_[j] = photometric[j];
   consecutive_failures_ = 0;
-  res.ground_T_camera = new_g_T_c;
-  const Eigen::Vector3d pos = new_g_T_c.translation();
+  const Eigen::Vector3d pos = ground_T_camera.translation();
   map_.evictFarFrom(pos.x(), pos.y());
-  return finish(res);
+}
+
+FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const ImagePyramid& right, double stamp_s,
+                                                FrameResult* out, std::unique_ptr<ImagePyramid>& pl,
+                                                std::unique_ptr<ImagePyramid>& pr) {
+  // Re-initialization from the stereo pair: the stereo mode measures the camera's height, pitch
+  // and roll relative to the ground in front of it; x, y and heading come from the prediction
+  // (they drift, and that is counted). The surface seen now replaces the map under it.
+  FrameResult& res = *out;
+  const Eigen::Isometry3d predicted = predict(stamp_s);
+  const StereoResult sr = stereo_.estimate(left, right);
+  if (!sr.ok) {
+    ++failures_total_;
+    res.status = FrameStatus::kFailed;
+    res.message = "re-initialization failed: " + sr.message;
+    res.ground_T_camera = predicted.inverse();
+    return res;
+  }
+  const Eigen::Isometry3d g_T_c_pred = predicted.inverse();
+  // The local ground frame G' of the stereo result placed in the map: its origin under the
+  // predicted camera at the map's ground level there, its x axis along the predicted heading.
+  Eigen::Vector3d fwd = g_T_c_pred.linear().col(2);
+  fwd.z() = 0.0;
+  if (fwd.norm() < 1e-6) fwd = Eigen::Vector3d::UnitX();
+  fwd.normalize();
+  double ground_z = g_T_c_pred.translation().z() - options_.stereo.nominal_height_m;
+  {
+    const GroundGrid local = GroundGrid::covering(g_T_c_pred.translation().x() - 3.0, g_T_c_pred.translation().x() + 3.0,
+                                                  g_T_c_pred.translation().y() - 3.0, g_T_c_pred.translation().y() + 3.0,
+                                                  options_.stereo.grid_resolution_m);
+    Eigen::VectorXd h, info;
+    map_.sample(local, &h, &info);
+    std::vector<double> known;
+    for (int v = 0; v < h.size(); ++v)
+      if (std::isfinite(h[v])) known.push_back(h[v]);
+    if (known.size() > 5) {
+      std::nth_element(known.begin(), known.begin() + static_cast<std::ptrdiff_t>(known.size() / 2), known.end());
+      ground_z = known[known.size() / 2];
+    }
+  }
+  Eigen::Isometry3d g_T_local = Eigen::Isometry3d::Identity();
+  g_T_local.linear().col(0) = fwd;
+  g_T_local.linear().col(1) = Eigen::Vector3d::UnitZ().cross(fwd);
+  g_T_local.linear().col(2) = Eigen::Vector3d::UnitZ();
+  g_T_local.translation() = Eigen::Vector3d(g_T_c_pred.translation().x(), g_T_c_pred.translation().y(), ground_z);
+  const Eigen::Isometry3d ground_T_camera = g_T_local * sr.ground_T_camera;
+  // Resample the stereo surface on the map's lattice.
+  const GroundGrid window = viewWindow(ground_T_camera.inverse());
+  Eigen::VectorXd heights(window.vertexCount()), data_info = Eigen::VectorXd::Zero(window.vertexCount());
+  std::vector<uint8_t> update(static_cast<size_t>(window.vertexCount()), 0);
+  const Eigen::Isometry3d local_T_g = g_T_local.inverse();
+  for (int v = 0; v < window.vertexCount(); ++v) {
+    const Eigen::Vector2d xy = window.position(v);
+    Eigen::Vector3d p = local_T_g * Eigen::Vector3d(xy.x(), xy.y(), ground_z);
+    const double zl = sr.grid.interpolate(sr.heights, p.x(), p.y());
+    heights[v] = std::numeric_limits<double>::quiet_NaN();
+    if (!std::isfinite(zl)) continue;
+    p.z() = zl;
+    heights[v] = (g_T_local * p).z();
+    data_info[v] = std::max(0.0, sr.grid.interpolate(sr.information, p.x(), p.y()));
+    update[static_cast<size_t>(v)] = 1;
+  }
+  map_.fuse(window, heights, Eigen::VectorXd::Zero(window.vertexCount()), data_info, update, res.frame_index);
+  res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
+  res.window = window;
+  res.photometric = {sr.photometric, PhotometricParams(), PhotometricParams()};
+  res.median_abs_residual_grey = sr.median_abs_residual_grey;
+  ++recoveries_;
+  res.status = FrameStatus::kRecovered;
+  res.message = "re-initialized from the stereo pair after " + std::to_string(consecutive_failures_) + " failures";
+  velocity_.setZero();
+  velocity_known_ = false;
+  residual_level_ = sr.median_abs_residual_grey;
+  advance(ground_T_camera, stamp_s, pl, pr, {sr.photometric});
+  res.ground_T_camera = ground_T_camera;
+  return res;
 }
 
 }  // namespace stereo_ground_dem

@@ -76,6 +76,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("max_height_jump_m", &e.max_height_jump_m, "well-known vertices moving this far are implausible [m]", true);
   d("max_jump_fraction", &e.max_jump_fraction, "... for more than this fraction of them", true);
   i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
+  i("prealign_level", &e.prealign_level, "pyramid level of the motion-only pre-alignment", true);
+  i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
+  d("max_residual_ratio", &e.max_residual_ratio, "median residual above this times the usual: failure", true);
+  d("max_residual_increase_grey", &e.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
   d("nominal_frame_period_s", &e.nominal_frame_period_s, "frame period used when stamps do not increase [s]");
   d("min_mean_grey", &e.min_mean_grey, "darker images are rejected [grey]", true);
   d("max_saturated_fraction", &e.max_saturated_fraction, "images with more saturated pixels are rejected", true);
