@@ -1,6 +1,8 @@
 #include "stereo_ground_dem/ParameterTable.hpp"
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <opencv2/core/persistence.hpp>
 #include <stdexcept>
 
@@ -128,13 +130,21 @@ double ParameterTable::get(const Entry& e) const {
 }
 
 void ParameterTable::loadYaml(const std::string& path) const {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("parameter file '" + path + "': cannot be opened");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string content = text.str();
+  // OpenCV's YAML reader insists on a "%YAML:1.0" first line; plain YAML files do not have it.
+  if (content.rfind("%YAML", 0) != 0) content = "%YAML:1.0\n" + content;
+  if (content.find_first_not_of(" \t\r\n", content.find('\n') + 1) == std::string::npos) return;  // empty file
   cv::FileStorage fs;
   try {
-    fs.open(path, cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
+    fs.open(content, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   } catch (const cv::Exception& ex) {
-    throw std::runtime_error("parameter file '" + path + "': not readable YAML (" + ex.msg + ")");
+    throw std::runtime_error("parameter file '" + path + "': not readable YAML (" + ex.err + ")");
   }
-  if (!fs.isOpened()) throw std::runtime_error("parameter file '" + path + "': cannot be opened");
+  if (!fs.isOpened()) throw std::runtime_error("parameter file '" + path + "': not readable YAML");
   cv::FileNode root = fs.root();
   for (const char* wrapper : {"stereo_ground_dem", "dem_nodelet"}) {
     if (!root[wrapper].empty() && root[wrapper].isMap()) root = root[wrapper];

@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 #include <numeric>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
@@ -242,6 +243,8 @@ int runSequence(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Our errors are one line each; OpenCV's own warnings (e.g. on a missing image) would add more.
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   Args a;
   try {
     a = parse(argc, argv);

@@ -1,0 +1,157 @@
+// The offline runner as a user meets it: outputs on the bundled KITTI sample, one-line errors.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <string>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include "stereo_ground_dem/io/DemMetadata.hpp"
+#include "stereo_ground_dem/io/DisparityPng.hpp"
+#include "stereo_ground_dem/io/GeoTiff.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+const std::string kSample = std::string(SGD_SOURCE_DIR) + "/data/kitti_seq06_sample";
+
+struct Outcome {
+  int status;
+  std::string err;
+  std::string out;
+};
+
+Outcome run(const std::string& args) {
+  const std::string err_file = "/tmp/sgd_offline_err.txt", out_file = "/tmp/sgd_offline_out.txt";
+  const std::string cmd = std::string(DEM_OFFLINE) + " " + args + " >" + out_file + " 2>" + err_file;
+  const int raw = std::system(cmd.c_str());
+  Outcome r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  std::ifstream e(err_file), o(out_file);
+  std::stringstream se, so;
+  se << e.rdbuf();
+  so << o.rdbuf();
+  r.err = se.str();
+  r.out = so.str();
+  return r;
+}
+
+bool exists(const std::string& p) {
+  struct stat st {};
+  return stat(p.c_str(), &st) == 0;
+}
+
+int lines(const std::string& s) {
+  int n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+}  // namespace
+
+TEST(DemOffline, OnePairWritesTheDemOnRealKitti) {
+  const std::string out = "/tmp/sgd_test_pair";
+  std::system(("rm -rf " + out).c_str());
+  const Outcome r = run("--left " + kSample + "/image_l/000000.png --right " + kSample + "/image_r/000000.png --calib " +
+                    kSample + "/calib.txt --out " + out);
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* f : {"dem.tif", "dem.yaml", "dem_disparity_000000.png", "dem_height.png", "traversability.tif"}) {
+    EXPECT_TRUE(exists(out + "/" + f)) << f;
+  }
+  GroundGrid grid;
+  const cv::Mat dem = GeoTiff::read(out + "/dem.tif", &grid);
+  const DemMetadata meta = DemMetadata::read(out + "/dem.yaml");
+  EXPECT_TRUE(meta.grid().sameLayout(grid));
+  EXPECT_DOUBLE_EQ(meta.resolution_m, 0.5);
+  // The camera is ~1.65 m above the fitted ground, looking forward (optical z ~ ground x).
+  EXPECT_NEAR(meta.ground_T_camera0.translation().z(), 1.65, 0.1);
+  EXPECT_GT(meta.ground_T_camera0.linear()(0, 2), 0.99);
+  // The road ahead (x 6..12 m, |y| < 1 m) is known, smooth and near zero height.
+  int known = 0;
+  double max_abs = 0.0;
+  for (int r2 = 0; r2 < grid.rows; ++r2)
+    for (int c = 0; c < grid.cols; ++c) {
+      const double x = grid.xOfCol(c), y = grid.yOfRow(r2);
+      if (x < 6 || x > 12 || std::abs(y) > 1.0) continue;
+      const float h = dem.at<float>(r2, c);
+      if (!std::isfinite(h)) continue;
+      ++known;
+      max_abs = std::max(max_abs, std::abs(static_cast<double>(h)));
+    }
+  EXPECT_GT(known, 40);
+  EXPECT_LT(max_abs, 0.25);
+  // Disparity PNG: the road at the bottom centre of the image has 30..100 px of disparity.
+  const cv::Mat d = DisparityPng::read(out + "/dem_disparity_000000.png", 0.0f);
+  EXPECT_EQ(d.cols, 1226);
+  EXPECT_GT(d.at<float>(350, 650), 30.0f);
+  EXPECT_LT(d.at<float>(350, 650), 100.0f);
+  EXPECT_EQ(d.at<float>(50, 650), 0.0f);  // sky: none
+}
+
+TEST(DemOffline, SequenceModeOnTheBundledSample) {
+  const std::string out = "/tmp/sgd_test_seq";
+  std::system(("rm -rf " + out).c_str());
+  const Outcome r = run("--sequence " + kSample + " --out " + out + " --frames 4 --quiet");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* f : {"dem.tif", "dem.yaml", "trajectory_kitti.txt", "trajectory_tum.txt", "timing.csv",
+                        "variance.tif", "traversability.tif", "mesh.ply", "summary.txt", "dem_disparity_000000.png"}) {
+    EXPECT_TRUE(exists(out + "/" + f)) << f;
+  }
+  std::ifstream traj(out + "/trajectory_kitti.txt");
+  std::string line;
+  int n = 0;
+  double z_last = 0.0;
+  while (std::getline(traj, line)) {
+    std::istringstream ss(line);
+    double v[12];
+    for (double& x : v) ss >> x;
+    z_last = v[11];
+    ++n;
+  }
+  EXPECT_EQ(n, 4);
+  EXPECT_NEAR(z_last, 3.576, 0.1);  // KITTI ground truth of frame 3: 3.576 m forward
+}
+
+TEST(DemOffline, BadInputGivesOneLineAndNonZeroExit) {
+  const std::string l = kSample + "/image_l/000000.png", rgt = kSample + "/image_r/000000.png",
+                    c = kSample + "/calib.txt";
+  // missing file
+  Outcome r = run("--left /nonexistent.png --right " + rgt + " --calib " + c + " --out /tmp/sgd_bad");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("cannot read image"), std::string::npos) << r.err;
+  // unreadable image (a text file)
+  r = run("--left " + c + " --right " + rgt + " --calib " + c + " --out /tmp/sgd_bad");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  // size mismatch
+  const std::string small = "/tmp/sgd_small.png";
+  cv::imwrite(small, cv::Mat(100, 200, CV_8U, cv::Scalar(90)));
+  r = run("--left " + l + " --right " + small + " --calib " + c + " --out /tmp/sgd_bad");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("differ in size"), std::string::npos) << r.err;
+  // bad calibration
+  const std::string bad_calib = "/tmp/sgd_bad_calib.txt";
+  std::ofstream(bad_calib) << "P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: 700 0 600 380 0 700 180 0 0 0 1 0\n";
+  r = run("--left " + l + " --right " + rgt + " --calib " + bad_calib + " --out /tmp/sgd_bad");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("baseline"), std::string::npos) << r.err;
+  // bad arguments and a bad parameter file
+  r = run("--sequence /nonexistent --out /tmp/sgd_bad");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("is not a directory"), std::string::npos) << r.err;
+  const std::string bad_cfg = "/tmp/sgd_bad_cfg.yaml";
+  std::ofstream(bad_cfg) << "smoothnes_weight: 3\n";
+  r = run("--sequence " + kSample + " --out /tmp/sgd_bad --config " + bad_cfg);
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("unknown parameter 'smoothnes_weight'"), std::string::npos) << r.err;
+  r = run("--frames 3");
+  EXPECT_EQ(r.status, 2);
+}
