@@ -50,6 +50,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("plane_fit_max_range_m", &s.plane_fit_max_range_m, "start-up plane fitted on ground up to [m]");
   // cost terms
   d("smoothness_weight", &a.smoothness_weight, "lambda_s, weight of the integrated squared curvature [m^2]", true);
+  d("smoothness_robust_scale_m", &a.smoothness_robust_scale_m, "Cauchy scale of second differences, <= 0 quadratic [m]", true);
   d("update_weight", &s.update_weight, "update constraint mu at 0 m depth [1/m^2]", true);
   d("update_reference_depth_m", &s.update_reference_depth_m, "mu grows as (1 + (depth/this)^2) [m]", true);
   b("use_hierarchy", &s.use_hierarchy, "coarse-to-fine meshes (false: finest mesh at every level)");

@@ -83,12 +83,14 @@ struct Chunk {
   std::vector<std::vector<double>> tri;  ///< [pair] stride * triangles
   std::vector<PairAccumulator> pair;
   std::vector<int> tri_pixels;
+  std::vector<int> tri_excluded;  ///< pixels of the triangle masked out as obstacles
   std::vector<float> abs_residuals;
   void reset(const std::vector<int>& strides, size_t nt) {
     tri.resize(strides.size());
     for (size_t j = 0; j < strides.size(); ++j) tri[j].assign(static_cast<size_t>(strides[j]) * nt, 0.0);
     pair.assign(strides.size(), PairAccumulator());
     tri_pixels.assign(nt, 0);
+    tri_excluded.assign(nt, 0);
     abs_residuals.clear();
   }
 };
@@ -98,6 +100,8 @@ struct Evaluation {
   /// Triangles that own at least one pixel get a slot; accumulators are per slot.
   std::vector<int> slot_of;   ///< triangle -> slot or -1
   std::vector<int> slot_tri;  ///< slot -> triangle
+  std::vector<double> smooth_residual;  ///< per stencil: w (z_a - 2 z_b + z_d)
+  std::vector<double> smooth_weight;    ///< per stencil: robust (IRLS) weight
   double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
   double total() const { return data_cost + smoothness_cost + prior_cost; }
   const Chunk& sums() const { return chunks[0]; }
@@ -321,13 +325,31 @@ class LevelSolver {
         for (size_t i = 0; i < n; ++i) dst[i] += src[i];
         sum.pair[j].add(o.pair[j]);
       }
-      for (size_t i = 0; i < ns; ++i) sum.tri_pixels[i] += o.tri_pixels[i];
+      for (size_t i = 0; i < ns; ++i) {
+        sum.tri_pixels[i] += o.tri_pixels[i];
+        sum.tri_excluded[i] += o.tri_excluded[i];
+      }
       sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
     }
     ev->data_cost = 0.0;
     for (const auto& pa : sum.pair) ev->data_cost += data_scale_ * pa.cost;
     const Eigen::VectorXd za = activeHeights(s);
-    ev->smoothness_cost = (smooth_ * za).squaredNorm();
+    ev->smoothness_cost = 0.0;
+    ev->smooth_residual.resize(stencils_.size());
+    ev->smooth_weight.resize(stencils_.size());
+    for (size_t k = 0; k < stencils_.size(); ++k) {
+      const Stencil& st = stencils_[k];
+      const double r = st.w * (za[st.v[0]] - 2.0 * za[st.v[1]] + za[st.v[2]]);
+      ev->smooth_residual[k] = r;
+      if (smooth_c2_ > 0.0) {
+        const double c2 = smooth_c2_ * st.w * st.w;
+        ev->smoothness_cost += c2 * std::log1p(r * r / c2);
+        ev->smooth_weight[k] = 1.0 / (1.0 + r * r / c2);
+      } else {
+        ev->smoothness_cost += r * r;
+        ev->smooth_weight[k] = 1.0;
+      }
+    }
     ev->prior_cost = 0.0;
     if (prob_.prior) {
       for (size_t a = 0; a < active_.size(); ++a) {
@@ -377,7 +399,11 @@ class LevelSolver {
         if (tl < 0) continue;
         const int ti = slot_of[tl];  // the slot: accumulators and homographies are per slot
         const float i0 = i0row[u];
-        if (i0 <= dark || i0 >= sat || (exrow && exrow[u])) continue;
+        if (exrow && exrow[u]) {
+          ch->tri_excluded[static_cast<size_t>(ti)]++;
+          continue;
+        }
+        if (i0 <= dark || i0 >= sat) continue;
         ch->tri_pixels[static_cast<size_t>(ti)]++;
         const float x = (static_cast<float>(u) - cx) / fx;
         const float uf = static_cast<float>(u);
@@ -531,8 +557,18 @@ class LevelSolver {
     // Height block on the fixed pattern: smoothness (constant) + data + prior.
     SpMat& hzz = hzz_;
     Eigen::Map<Eigen::VectorXd> values(hzz.valuePtr(), hzz.nonZeros());
-    values = smooth_values_;
+    values.setZero();
     Eigen::VectorXd gz = Eigen::VectorXd::Zero(na);
+    static constexpr double kCoef[3] = {1.0, -2.0, 1.0};
+    for (size_t k = 0; k < stencils_.size(); ++k) {
+      const Stencil& st = stencils_[k];
+      const double om = ev.smooth_weight[k];
+      const double ww = om * st.w * st.w;
+      for (int a = 0; a < 3; ++a) {
+        gz[st.v[a]] += om * ev.smooth_residual[k] * st.w * kCoef[a];
+        for (int b = 0; b < 3; ++b) values[st.idx[a * 3 + b]] += ww * kCoef[a] * kCoef[b];
+      }
+    }
     Eigen::MatrixXd hzg = Eigen::MatrixXd::Zero(na, ng);
     Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
     Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
@@ -624,8 +660,6 @@ class LevelSolver {
       return step;
     }
     // Smoothness and prior gradients on the fine active heights.
-    const Eigen::VectorXd za = activeHeights(s);
-    gz += smooth_t_smooth_ * za;
     if (prob_.prior) {
       for (int a = 0; a < na; ++a) {
         const int v = active_[static_cast<size_t>(a)];
@@ -738,9 +772,13 @@ class LevelSolver {
 
   void fillPixels(const Evaluation& ev, AlignmentReport* report) const {
     report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+    report->vertex_excluded_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
     for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
       const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
-      for (int a = 0; a < 3; ++a) report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
+      for (int a = 0; a < 3; ++a) {
+        report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
+        report->vertex_excluded_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_excluded[k2];
+      }
     }
   }
 
@@ -838,18 +876,17 @@ class LevelSolver {
     const double s = g.resolution_m;
     const double w_axis = std::sqrt(opt_.smoothness_weight) / s;
     const double w_diag = std::sqrt(opt_.smoothness_weight) / (2.0 * s);
-    std::vector<Eigen::Triplet<double>> trip;
-    int row = 0;
+    stencils_.clear();
     auto add = [&](int r, int c, int dr, int dc, double w) {
       if (!g.contains(r - dr, c - dc) || !g.contains(r + dr, c + dc)) return;
       const int a = local_[static_cast<size_t>(g.index(r - dr, c - dc))];
       const int b = local_[static_cast<size_t>(g.index(r, c))];
       const int d = local_[static_cast<size_t>(g.index(r + dr, c + dc))];
       if (a < 0 || b < 0 || d < 0) return;
-      trip.emplace_back(row, a, w);
-      trip.emplace_back(row, b, -2.0 * w);
-      trip.emplace_back(row, d, w);
-      ++row;
+      Stencil st;
+      st.v = {a, b, d};
+      st.w = w;
+      stencils_.push_back(st);
     };
     if (opt_.smoothness_weight > 0.0) {
       for (int v : active_) {
@@ -859,9 +896,11 @@ class LevelSolver {
         add(r, c, 1, 1, w_diag);
       }
     }
-    smooth_.resize(row, activeCount());
-    smooth_.setFromTriplets(trip.begin(), trip.end());
-    smooth_t_smooth_ = smooth_.transpose() * smooth_;
+    // Robust scale of a stencil's second difference [m]: larger bends (a curb, a step) are
+    // down-weighted (Cauchy), so the surface may break there instead of smearing the step.
+    smooth_c2_ = opt_.smoothness_robust_scale_m > 0.0
+                     ? opt_.smoothness_robust_scale_m * opt_.smoothness_robust_scale_m
+                     : 0.0;
   }
 
   /// The fixed sparsity pattern of the height block (triangles, smoothness, diagonal) and where
@@ -869,13 +908,14 @@ class LevelSolver {
   void buildPattern() {
     const int na = activeCount();
     std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + static_cast<size_t>(smooth_t_smooth_.nonZeros()));
+    trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + stencils_.size() * 9);
     for (const auto& t : tris_)
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)], 0.0);
     for (int a = 0; a < na; ++a) trip.emplace_back(a, a, 0.0);
-    for (int k = 0; k < smooth_t_smooth_.outerSize(); ++k)
-      for (SpMat::InnerIterator it(smooth_t_smooth_, k); it; ++it) trip.emplace_back(it.row(), it.col(), 0.0);
+    for (const auto& st : stencils_)
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) trip.emplace_back(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)], 0.0);
     hzz_.resize(na, na);
     hzz_.setFromTriplets(trip.begin(), trip.end());
     hzz_.makeCompressed();
@@ -891,10 +931,9 @@ class LevelSolver {
           t.value_index[static_cast<size_t>(r * 3 + c)] = index(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)]);
     diag_index_.resize(static_cast<size_t>(na));
     for (int a = 0; a < na; ++a) diag_index_[static_cast<size_t>(a)] = index(a, a);
-    smooth_values_ = Eigen::VectorXd::Zero(hzz_.nonZeros());
-    for (int k = 0; k < smooth_t_smooth_.outerSize(); ++k)
-      for (SpMat::InnerIterator it(smooth_t_smooth_, k); it; ++it)
-        smooth_values_[index(static_cast<int>(it.row()), static_cast<int>(it.col()))] += it.value();
+    for (auto& st : stencils_)
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) st.idx[static_cast<size_t>(a * 3 + b)] = index(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)]);
   }
 
   const SurfaceAlignerOptions& opt_;
@@ -914,10 +953,15 @@ class LevelSolver {
   int control_count_ = 0;
   SpMat basis_, basis_t_;     ///< active rows x compact controls
   Eigen::VectorXd mu_;
-  SpMat smooth_, smooth_t_smooth_;
+  struct Stencil {
+    std::array<int, 3> v{};    ///< compact indices of the three collinear vertices
+    double w = 0.0;            ///< sqrt(lambda) / h-scaled weight of the second difference
+    std::array<int, 9> idx{};  ///< positions of its 3x3 block in the height matrix' values
+  };
+  std::vector<Stencil> stencils_;
+  double smooth_c2_ = 0.0;
   SpMat hzz_, hcc_;
   std::vector<int> diag_index_;
-  Eigen::VectorXd smooth_values_;
   Eigen::SimplicialLDLT<SpMat> chol_;
   bool analyzed_ = false;
   Eigen::Index analyzed_nnz_ = 0;
@@ -971,6 +1015,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   if (solver.empty()) {
     report.vertex_information = Eigen::VectorXd::Zero(problem.grid->vertexCount());
     report.vertex_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
+    report.vertex_excluded_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
     return report;
   }
   Evaluation* ev = &ws.eval[0];
