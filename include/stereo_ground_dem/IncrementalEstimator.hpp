@@ -41,6 +41,7 @@ struct IncrementalEstimatorOptions {
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
+  bool temporal_checkerboard = false;     ///< temporal pairs use every other pixel
   double max_residual_ratio = 3.0;        ///< median residual above ratio * the usual level ...
   double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
   int min_samples = 500;                  ///< fewer pixel samples in the final level: failure

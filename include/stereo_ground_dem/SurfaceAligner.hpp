@@ -77,6 +77,9 @@ struct AlignerTarget {
   Eigen::Isometry3d target_T_reference = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d target_T_ground = Eigen::Isometry3d::Identity();
   bool estimate_photometric = true;
+  /// Use every other reference pixel (a checkerboard) for this pair: half the cost, for pairs
+  /// whose information is mostly about the six motion parameters.
+  bool checkerboard = false;
 };
 
 /// What is estimated; updated in place by align().

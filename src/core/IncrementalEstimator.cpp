@@ -374,6 +374,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prev_l.pyramid = prev_left_.get();
   prev_l.rig_fixed = false;
   prev_l.target_T_ground = prev_c_T_g;
+  prev_l.checkerboard = options_.temporal_checkerboard;
   AlignerTarget prev_r = prev_l;
   prev_r.pyramid = prev_right_.get();
   prev_r.target_T_ground = rigTransform(rig_) * prev_c_T_g;
@@ -403,8 +404,10 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     Vector6d no_turn = velocity_ * dt;
     no_turn.tail<3>().setZero();
     const Eigen::Isometry3d starts[2] = {predicted, Se3::exp(no_turn) * prev_c_T_g};
-    double best = std::numeric_limits<double>::infinity();
+    double best = std::numeric_limits<double>::infinity(), best_residual = 0.0;
     for (int k = 0; k < (velocity_known_ ? 2 : 1); ++k) {
+      // the second start only when the first did not align well
+      if (k == 1 && std::isfinite(best) && best_residual <= options_.max_residual_ratio * residual_level_) break;
       SurfaceState s;
       s.camera_T_ground = starts[k];
       s.heights = heights;
@@ -416,6 +419,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
       if (cost < best) {
         best = cost;
+        best_residual = rep.median_abs_residual_grey;
         state.camera_T_ground = s.camera_T_ground;
         state.photometric = s.photometric;
       }

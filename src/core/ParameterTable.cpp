@@ -80,6 +80,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("max_jump_fraction", &e.max_jump_fraction, "... for more than this fraction of them", true);
   i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
   i("prealign_level", &e.prealign_level, "pyramid level of the motion-only pre-alignment", true);
+  b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
   d("max_residual_ratio", &e.max_residual_ratio, "median residual above this times the usual: failure", true);
   d("max_residual_increase_grey", &e.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
