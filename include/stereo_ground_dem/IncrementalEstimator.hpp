@@ -46,10 +46,6 @@ struct IncrementalEstimatorOptions {
   double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
   int min_samples = 500;                  ///< fewer pixel samples in the final level: failure
   double max_init_std_m = 0.05;           ///< map heights less certain are re-extended, not trusted [m]
-  int min_fuse_pixels = 6;                ///< vertices with fewer pixels in their triangles are not fused
-  /// Vertices whose triangles hold more obstacle-masked pixels than this times their ground pixels
-  /// are hidden by an obstacle, not observed: not fused.
-  double max_obstacle_pixel_ratio = 0.3;
   /// When the velocity is unknown (first tracked frame, after a failure), translations along the
   /// optical axis from motion_search_min_m to motion_search_max_m (per nominal frame period) are
   /// tried at the coarsest level and the cheapest starts the Gauss-Newton: far from the minimum
@@ -93,6 +89,7 @@ struct FrameResult {
   std::vector<AlignmentReport> reports;  ///< per mesh level, coarse to fine
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   int obstacle_pixels = 0;               ///< at the obstacle test level
+  int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
 };
 
 class IncrementalEstimator {

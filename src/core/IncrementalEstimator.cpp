@@ -47,8 +47,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
     return bad("max_residual_ratio must exceed 1 and max_residual_increase_grey be > 0");
   }
   if (min_samples < 0) return bad("min_samples must be >= 0");
-  if (!(max_init_std_m > 0.0) || min_fuse_pixels < 1) return bad("need max_init_std_m > 0 and min_fuse_pixels >= 1");
-  if (!(max_obstacle_pixel_ratio >= 0.0)) return bad("max_obstacle_pixel_ratio must be >= 0");
+  if (!(max_init_std_m > 0.0)) return bad("max_init_std_m must be > 0");
   if (!(motion_search_step_m > 0.0) || !(motion_search_max_m >= motion_search_min_m)) {
     return bad("need motion_search_step_m > 0 and motion_search_max_m >= motion_search_min_m");
   }
@@ -330,6 +329,8 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     std::vector<uint8_t> update(static_cast<size_t>(sr.grid.vertexCount()));
     for (int v = 0; v < sr.grid.vertexCount(); ++v) update[static_cast<size_t>(v)] = std::isfinite(sr.heights[v]);
     map_.fuse(sr.grid, sr.heights, Eigen::VectorXd::Zero(sr.grid.vertexCount()), sr.information, update, res.frame_index);
+    map_.updateObstacles(sr.grid, sr.obstacle_evidence.hit, sr.obstacle_evidence.ground, sr.obstacle_evidence.height,
+                         res.frame_index);
     res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
     initialized_ = true;
     velocity_.setZero();
@@ -503,9 +504,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   int jumps = 0, well_known = 0;
   for (int v = 0; v < window.vertexCount(); ++v) {
     if (last.vertex_pixels.size() == 0 || last.vertex_pixels[v] == 0 || !std::isfinite(state.heights[v])) continue;
-    if (last.vertex_pixels[v] < options_.min_fuse_pixels) continue;
+    if (last.vertex_pixels[v] < so.min_ground_pixels) continue;
     // Seen mostly through obstacle pixels: the ground there is hidden, not observed.
-    if (last.vertex_excluded_pixels[v] > options_.max_obstacle_pixel_ratio * last.vertex_pixels[v]) continue;
+    if (last.vertex_excluded_pixels[v] > so.hidden_pixel_ratio * last.vertex_pixels[v]) continue;
     update[static_cast<size_t>(v)] = 1;
     if (info[v] > 1e3) {  // std below ~3 cm
       ++well_known;
@@ -546,6 +547,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // ---- 5. fuse, advance
   const Eigen::VectorXd fused_prior_info = prob.prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
   map_.fuse(window, state.heights, fused_prior_info, last.vertex_information, update, res.frame_index);
+  const ObstacleEvidence oe = ObstacleDetector::evidence(
+      window, state.heights, last.vertex_pixels, last.vertex_excluded_pixels,
+      obstacles.groundPoints(rig_, state.camera_T_ground.inverse()), so.hidden_pixel_ratio, so.min_ground_pixels,
+      so.obstacles.min_obstacle_height_m);
+  map_.updateObstacles(window, oe.hit, oe.ground, oe.height, res.frame_index);
+  res.obstacle_vertices = static_cast<int>(std::count(oe.hit.begin(), oe.hit.end(), 1));
   res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
   velocity_ = step / dt;
   velocity_known_ = true;

@@ -72,6 +72,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("obstacle_level", &ob.level, "pyramid level of the obstacle test");
   d("min_obstacle_height_m", &ob.min_obstacle_height_m, "upright surfaces at least this high are obstacles [m]", true);
   d("obstacle_cost_ratio", &ob.cost_ratio, "obstacle when its photometric cost < ratio * ground's", true);
+  d("hidden_pixel_ratio", &s.hidden_pixel_ratio, "vertex hidden by an obstacle when obstacle pixels > ratio * ground pixels", true);
+  i("min_ground_pixels", &s.min_ground_pixels, "vertices with fewer ground pixels are not observed", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   // failure handling and input checks
   d("max_speed_m_per_s", &e.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
