@@ -29,8 +29,8 @@ struct ElevationMapOptions {
   double keep_radius_m = 200.0;     ///< tiles whose centre is farther from the vehicle are evicted [m]
   double max_information = 1e6;     ///< cap on a vertex's information [1/m^2] (std >= 1 mm)
   float obstacle_hit = 1.0f;        ///< score added by a frame that sees an obstacle there
-  float obstacle_miss = 0.5f;       ///< score removed by a frame that sees the ground there
-  float obstacle_max_score = 3.0f;  ///< cap, so an object that leaves is forgotten in a few frames
+  float obstacle_miss = 1.0f;       ///< score removed by a frame that sees the ground there
+  float obstacle_max_score = 2.0f;  ///< cap: two frames that see the ground clear a mark (>= hit)
   std::string archive_directory;    ///< empty: evicted tiles are dropped
 
   bool isValid(std::string* why) const;

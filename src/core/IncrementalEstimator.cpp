@@ -552,6 +552,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       obstacles.groundPoints(rig_, state.camera_T_ground.inverse()), so.hidden_pixel_ratio, so.min_ground_pixels,
       so.obstacles.min_obstacle_height_m);
   map_.updateObstacles(window, oe.hit, oe.ground, oe.height, res.frame_index);
+
   res.obstacle_vertices = static_cast<int>(std::count(oe.hit.begin(), oe.hit.end(), 1));
   res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
   velocity_ = step / dt;

@@ -80,6 +80,10 @@ ObstacleDetector::ObstacleDetector(const ObstacleDetectorOptions& options) : opt
   if (!options_.isValid(&why)) throw std::invalid_argument("ObstacleDetectorOptions: " + why);
 }
 
+namespace {
+constexpr int kHalfStepBelowPx = 10;  ///< test-level disparities below this are swept in half pixels
+}  // namespace
+
 ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyramid& right, const StereoRig& rig,
                                       const PhotometricParams& ph, const cv::Mat& ground_rho) const {
   const ObstacleDetectorOptions& o = options_;
@@ -170,15 +174,26 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
   const cv::Range rows(r0, r1 + 1);
   const float inv_area = 1.0f / static_cast<float>(win.area());
   cv::Mat diff(h, w, CV_32F, cv::Scalar(0.0f)), sum_d;
-  for (int d = 1; d <= dmax; ++d) {
+  // Integer disparities, and half-pixel steps where they are small (far obstacles): a window
+  // half a pixel off its disparity costs as much as the ground on fine texture.
+  std::vector<float> candidates;
+  for (int d2 = 2; d2 <= 2 * dmax; ++d2) {
+    if (d2 % 2 == 0 || d2 < 2 * kHalfStepBelowPx) candidates.push_back(0.5f * static_cast<float>(d2));
+  }
+  for (const float df : candidates) {
+    const int d = static_cast<int>(std::ceil(df));
+    const float f = static_cast<float>(d) - df;  // right sample at u - df = (1 - f) * a[u-d] + f * a[u-d+1]
     for (int v = r0; v <= r1; ++v) {
       const float* lr = l.ptr<float>(v);
       const float* ar = a.ptr<float>(v);
-      float* df = diff.ptr<float>(v);
-      for (int u = d; u < w; ++u) df[u] = std::abs(lr[u] - ar[u - d]);
+      float* dfp = diff.ptr<float>(v);
+      if (f == 0.0f) {
+        for (int u = d; u < w; ++u) dfp[u] = std::abs(lr[u] - ar[u - d]);
+      } else {
+        for (int u = d; u < w; ++u) dfp[u] = std::abs(lr[u] - ((1.0f - f) * ar[u - d] + f * ar[u - d + 1]));
+      }
     }
     cv::boxFilter(diff.rowRange(rows), sum_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_REPLICATE);
-    const float df = static_cast<float>(d);
     for (int v = row0; v <= row1; ++v) {
       const float* s = sum_d.ptr<float>(v - r0);
       const float* t = thr.ptr<float>(v);

@@ -325,7 +325,24 @@ ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const Im
   SurfaceState state;
   state.camera_T_ground = camera_T_ground;
   state.heights = heights;
-  const cv::Mat rho = aligner.renderInverseDepth(prob, state);
+  cv::Mat rho = aligner.renderInverseDepth(prob, state);
+  // Beyond the mesh (farther than max_range_m or wider than max_lateral_m) the ground hypothesis
+  // is the level plane z = 0 of the ground frame: an obstacle near the mesh's far edge rises
+  // into image rows whose ground lies beyond it, and must be tested there too.
+  const StereoRig r = rig_.atLevel(oo.level);
+  const Eigen::Vector3d n = camera_T_ground.linear().col(2);  // ground z axis in the camera
+  const double nt = n.dot(camera_T_ground.translation());    // = -camera height above z = 0
+  if (nt < 0.0) {
+    for (int v = 0; v < rho.rows; ++v) {
+      float* p = rho.ptr<float>(v);
+      for (int u = 0; u < rho.cols; ++u) {
+        if (p[u] > 0.0f) continue;
+        const Eigen::Vector3d m((u - r.cx) / r.fx, (v - r.cy) / r.fy, 1.0);
+        const double inv_z = n.dot(m) / nt;
+        if (inv_z > 0.0 && inv_z < 1.0 / options_.max_range_m) p[u] = static_cast<float>(inv_z);
+      }
+    }
+  }
   return detector.detect(left, right, rig_, photometric, rho);
 }
 
