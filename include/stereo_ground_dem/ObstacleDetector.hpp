@@ -70,7 +70,8 @@ class ObstacleDetector {
   /// Evidence on `grid` (surface `heights`): a vertex is hit when its triangles' pixels were mostly
   /// excluded as obstacle pixels (more than `hidden_ratio` times its ground pixels; the ground
   /// there is hidden) or when at least `min_points` obstacle points at least
-  /// `min_obstacle_height_m` above the surface fall into its cell; it is ground when it had
+  /// `min_obstacle_height_m` above the surface fall into its cell and some of its triangles'
+  /// pixels are obstacle pixels (a thin pole); it is ground when it had
   /// `min_ground_pixels` ground pixels and no hit.
   static ObstacleEvidence evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
                                    const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,

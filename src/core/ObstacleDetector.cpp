@@ -66,7 +66,11 @@ ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen:
   for (int v = 0; v < n; ++v) {
     const bool hidden = ground_pixels.size() == n && excluded_pixels.size() == n && excluded_pixels[v] > 0 &&
                         excluded_pixels[v] > hidden_ratio * ground_pixels[v];
-    const bool points_here = count[static_cast<size_t>(v)] >= min_points;
+    // Obstacle points count only where obstacle pixels also cover part of the vertex's triangles:
+    // a thing standing there hides some of its ground; a point from a wrong disparity far away
+    // does not.
+    const bool covered = excluded_pixels.size() == n && excluded_pixels[v] > 0;
+    const bool points_here = covered && count[static_cast<size_t>(v)] >= min_points;
     if (!points_here) ev.height[v] = std::numeric_limits<double>::quiet_NaN();
     ev.hit[static_cast<size_t>(v)] = hidden || points_here;
     ev.ground[static_cast<size_t>(v)] =

@@ -45,13 +45,17 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
     written.push_back("traversability.tif");
   }
   if (!dem.obstacles.empty()) {
-    GeoTiff::write(dir + "/obstacles.tif", dem.obstacles, dem.grid, "obstacle_height");
+    GeoTiff::write(dir + "/obstacles.tif", dem.obstacles, dem.grid, "obstacle");
     written.push_back("obstacles.tif");
+  }
+  if (!dem.obstacle_height.empty()) {
+    GeoTiff::write(dir + "/obstacle_height.tif", dem.obstacle_height, dem.grid, "obstacle_height");
+    written.push_back("obstacle_height.tif");
   }
   DemMetadata meta = DemMetadata::fromGrid(dem.grid, dem.ground_T_camera0, layers);
   for (const auto& kv : dem.extra) meta.extra_strings[kv.first] = kv.second;
   // companion rasters on the same grid
-  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif"}) {
+  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif", "obstacle_height.tif"}) {
     if (std::find(written.begin(), written.end(), f) == written.end()) continue;
     std::string key = std::string(f).substr(0, std::string(f).find('.')) + "_file";
     meta.extra_strings[key] = f;

@@ -16,6 +16,7 @@
 #include <numeric>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <string>
 
@@ -115,6 +116,38 @@ void writeOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& 
                                                      "DEM-implied disparity [px]", po));
 }
 
+/// Obstacle cells are lethal (traversability 0) whatever the elevation layer holds there.
+void markObstacles(DemExport* dem) {
+  if (dem->obstacles.empty() || dem->traversability.empty()) return;
+  dem->traversability.setTo(0.0f, dem->obstacles == 1.0f);
+}
+
+/// The left image with the obstacle pixels (red) and the obstacle layer's vertices (yellow dots).
+void writeObstacleOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& excluded,
+                          const StereoResult& r, const StereoRig& rig) {
+  cv::Mat vis;
+  cv::Mat gray = image;
+  if (image.depth() == CV_16U) image.convertTo(gray, CV_8U, 1.0 / 256.0);
+  if (gray.channels() == 1) cv::cvtColor(gray, vis, cv::COLOR_GRAY2BGR);
+  else vis = gray.clone();
+  cv::Mat red(vis.size(), vis.type(), cv::Scalar(0, 0, 255));
+  cv::Mat blended;
+  cv::addWeighted(vis, 0.5, red, 0.5, 0.0, blended);
+  blended.copyTo(vis, excluded);
+  const Eigen::Isometry3d camera_T_ground = r.ground_T_camera.inverse();
+  for (int v = 0; v < r.grid.vertexCount(); ++v) {
+    if (!(r.obstacle[v] == 1.0)) continue;
+    const Eigen::Vector2d xy = r.grid.position(v);
+    const Eigen::Vector3d pc = camera_T_ground * Eigen::Vector3d(xy.x(), xy.y(), 0.0);
+    if (pc.z() <= 0.5) continue;
+    cv::circle(vis, cv::Point2d(rig.fx * pc.x() / pc.z() + rig.cx, rig.fy * pc.y() / pc.z() + rig.cy), 2,
+               cv::Scalar(0, 255, 255), cv::FILLED);
+  }
+  cv::putText(vis, "obstacle pixels (red), obstacle-layer vertices (yellow)", cv::Point(10, 22),
+              cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 2);
+  if (!cv::imwrite(path, vis)) throw std::runtime_error("cannot write '" + path + "'");
+}
+
 int runPair(const Args& a) {
   PipelineOptions o = loadOptions(a.config);
   StereoRig rig = CalibrationReader::read(a.calib);
@@ -146,6 +179,9 @@ int runPair(const Args& a) {
     if (!std::isfinite(r.heights[v]) || !(r.information[v] > 0)) var[v] = std::numeric_limits<double>::quiet_NaN();
   dem.variance = toMat(r.grid, var);
   dem.traversability = TraversabilityFilter(o.traversability).compute(r.grid, dem.elevation).traversability;
+  dem.obstacles = toMat(r.grid, r.obstacle);
+  dem.obstacle_height = toMat(r.grid, r.obstacle_height);
+  markObstacles(&dem);
   dem.ground_T_camera0 = r.ground_T_camera;
   dem.trajectory_xy = {r.ground_T_camera.translation().head<2>()};
   dem.extra = {{"mode", "stereo (one pair)"}, {"left_image", a.left}, {"right_image", a.right}};
@@ -153,13 +189,15 @@ int runPair(const Args& a) {
   const cv::Mat disp = est.impliedDisparity(r, pl);
   DisparityPng::write(a.out + "/dem_disparity_000000.png", disp);
   writeOverlay(a.out + "/dem_disparity_overlay.png", left, disp);
+  writeObstacleOverlay(a.out + "/obstacles_overlay.png", left, r.obstacles.excluded[0], r, rig);
   int known = 0;
   for (int v = 0; v < r.heights.size(); ++v) known += std::isfinite(r.heights[v]);
   std::printf("stereo mode: %.1f ms, %d of %d vertices observed, gain %.4f, bias %.2f grey, camera %.3f m above the ground\n",
               ms, known, r.grid.vertexCount(), r.photometric.gain, r.photometric.bias_grey,
               r.ground_T_camera.translation().z());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
-              "mesh.ply, dem_disparity_000000.png, dem_disparity_overlay.png}\n",
+              "mesh.ply, dem_disparity_000000.png, dem_disparity_overlay.png, obstacles.tif, obstacle_height.tif, "
+              "obstacles_overlay.png}\n",
               a.out.c_str());
   return 0;
 }
@@ -215,6 +253,9 @@ int runSequence(const Args& a) {
   dem.elevation = map.layer(ElevationMap::Layer::kElevation, dem.grid);
   dem.variance = map.layer(ElevationMap::Layer::kVariance, dem.grid);
   dem.traversability = TraversabilityFilter(o.traversability).compute(dem.grid, dem.elevation).traversability;
+  dem.obstacles = map.layer(ElevationMap::Layer::kObstacle, dem.grid);
+  dem.obstacle_height = map.layer(ElevationMap::Layer::kObstacleHeight, dem.grid);
+  markObstacles(&dem);
   dem.ground_T_camera0 = est.groundTCamera0();
   dem.trajectory_xy = xy;
   dem.extra = {{"mode", "incremental (sequence)"}, {"sequence", a.sequence}};
@@ -234,7 +275,7 @@ int runSequence(const Args& a) {
   std::printf("%d frames (%d failed, %d rejected), %.1f ms mean, %.1f ms median per frame, peak memory %.0f MB\n", n,
               failures, rejected, mean, median, peakMemoryMb());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
-              "mesh.ply, dem_disparity_000000.png, trajectory_kitti.txt, trajectory_tum.txt, timing.csv, "
+              "mesh.ply, obstacles.tif, obstacle_height.tif, dem_disparity_000000.png, trajectory_kitti.txt, trajectory_tum.txt, timing.csv, "
               "frames.csv, summary.txt}\n",
               a.out.c_str());
   return 0;

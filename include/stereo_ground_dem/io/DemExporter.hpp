@@ -3,7 +3,8 @@
 /// Writes a DEM and its companion layers and pictures into a folder, the same way for the offline
 /// runner and the ROS node's save service:
 ///   dem.tif (float32 heights [m], NaN unknown), dem.yaml (grid, origin, ground_T_camera0, layers),
-///   variance.tif [m^2], traversability.tif [0..1] (and obstacles.tif when given),
+///   variance.tif [m^2], traversability.tif [0..1], obstacles.tif (1 obstacle, 0 ground seen, NaN
+///   unknown) and obstacle_height.tif [m above the ground] when given,
 ///   dem_height.png (shaded, coloured, legend, trajectory), traversability.png, mesh.ply.
 
 #include <Eigen/Geometry>
@@ -20,7 +21,8 @@ struct DemExport {
   cv::Mat elevation;       ///< CV_32F rows x cols [m], NaN unknown
   cv::Mat variance;        ///< optional [m^2]
   cv::Mat traversability;  ///< optional [0..1]
-  cv::Mat obstacles;       ///< optional: obstacle height above the ground [m], NaN / 0 none
+  cv::Mat obstacles;       ///< optional: 1 obstacle (on or hidden by one), 0 ground seen, NaN unknown
+  cv::Mat obstacle_height; ///< optional: obstacle top above the ground [m], NaN where none measured
   Eigen::Isometry3d ground_T_camera0 = Eigen::Isometry3d::Identity();
   std::vector<Eigen::Vector2d> trajectory_xy;  ///< ground (x, y) of the camera per frame
   std::vector<std::pair<std::string, std::string>> extra;  ///< extra dem.yaml entries (strings)
