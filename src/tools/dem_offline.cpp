@@ -40,12 +40,30 @@ const char* kUsage =
     "       dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--quiet]\n"
     "  --config FILE  YAML file of parameters (see config/kitti.yaml)\n"
     "  --frames N     process the first N frames only\n"
-    "  --quiet        no per-frame progress lines\n";
+    "  --quiet        no per-frame progress lines\n"
+    "       dem_offline --list-parameters [--config FILE]   every parameter (markdown table)\n";
+
+/// Markdown table of every parameter: name, value (defaults, or after --config), tunable, meaning.
+void listParameters(const std::string& config) {
+  PipelineOptions o;
+  const ParameterTable table(&o);
+  if (!config.empty()) table.loadYaml(config);
+  std::cout << "| name | value | tunable | meaning |\n|---|---|---|---|\n";
+  for (const auto& e : table.entries()) {
+    std::ostringstream v;
+    if (e.type == ParameterTable::Type::kBool) v << (table.get(e) != 0.0 ? "true" : "false");
+    else v << table.get(e);
+    std::string d = e.description;
+    for (size_t i = d.find('|'); i != std::string::npos; i = d.find('|', i + 2)) d.replace(i, 1, "\\|");
+    std::cout << "| `" << e.name << "` | " << v.str() << " | " << (e.tunable ? "yes" : "") << " | " << d << " |\n";
+  }
+}
 
 struct Args {
   std::string left, right, calib, sequence, out, config;
   int frames = -1;
   bool quiet = false;
+  bool list_parameters = false;
 };
 
 Args parse(int argc, char** argv) {
@@ -69,6 +87,7 @@ Args parse(int argc, char** argv) {
       if (*end != '\0' || n < 1) throw std::invalid_argument("--frames needs a positive integer, got '" + v + "'");
       a.frames = static_cast<int>(n);
     } else if (k == "--quiet") a.quiet = true;
+    else if (k == "--list-parameters") a.list_parameters = true;
     else if (k == "-h" || k == "--help") {
       std::cout << kUsage;
       std::exit(0);
@@ -76,6 +95,7 @@ Args parse(int argc, char** argv) {
       throw std::invalid_argument("unknown argument '" + k + "'");
     }
   }
+  if (a.list_parameters) return a;
   if (a.out.empty()) throw std::invalid_argument("--out is required");
   const bool pair = !a.left.empty() || !a.right.empty() || !a.calib.empty();
   if (pair && !a.sequence.empty()) throw std::invalid_argument("use either --left/--right/--calib or --sequence");
@@ -294,6 +314,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    if (a.list_parameters) {
+      listParameters(a.config);
+      return 0;
+    }
     return a.sequence.empty() ? runPair(a) : runSequence(a);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dem_offline: %s\n", e.what());
