@@ -28,6 +28,9 @@ struct ElevationMapOptions {
   int tile_size = 64;               ///< vertices per tile side
   double keep_radius_m = 200.0;     ///< tiles whose centre is farther from the vehicle are evicted [m]
   double max_information = 1e6;     ///< cap on a vertex's information [1/m^2] (std >= 1 mm)
+  float obstacle_hit = 1.0f;        ///< score added by a frame that sees an obstacle there
+  float obstacle_miss = 0.5f;       ///< score removed by a frame that sees the ground there
+  float obstacle_max_score = 3.0f;  ///< cap, so an object that leaves is forgotten in a few frames
   std::string archive_directory;    ///< empty: evicted tiles are dropped
 
   bool isValid(std::string* why) const;
@@ -35,7 +38,10 @@ struct ElevationMapOptions {
 
 class ElevationMap {
  public:
-  enum class Layer { kElevation, kVariance, kObservations, kLastUpdate };
+  /// kObstacle: 1 where an obstacle is believed (hidden by or under one), 0 where the ground was
+  /// seen last, NaN unknown; kObstacleHeight: the obstacle's height above the ground [m] where a
+  /// 3-D obstacle point fell into the cell.
+  enum class Layer { kElevation, kVariance, kObservations, kLastUpdate, kObstacle, kObstacleHeight };
 
   explicit ElevationMap(const ElevationMapOptions& options = ElevationMapOptions());
 
@@ -48,6 +54,12 @@ class ElevationMap {
   /// `window` must be on the map's lattice (same resolution).
   void fuse(const GroundGrid& window, const Eigen::VectorXd& heights, const Eigen::VectorXd& prior_information,
             const Eigen::VectorXd& data_information, const std::vector<uint8_t>& update, int frame_index);
+
+  /// Obstacle evidence of one frame on `window` (vectors per window vertex): hits raise a
+  /// vertex's obstacle score, ground observations lower it, so that moving objects leave no
+  /// ghosts once the ground behind them is seen again.
+  void updateObstacles(const GroundGrid& window, const std::vector<uint8_t>& hit, const std::vector<uint8_t>& ground,
+                       const Eigen::VectorXd& obstacle_height, int frame_index);
 
   /// Removes (or archives) the tiles whose centre is farther than keep_radius_m from (x, y).
   int evictFarFrom(double x, double y);
@@ -74,6 +86,8 @@ class ElevationMap {
     std::vector<float> information;  ///< [1/m^2]
     std::vector<uint16_t> observations;
     std::vector<int32_t> last_update;
+    std::vector<float> obstacle_score;   ///< log-odds-like; >= 1: obstacle
+    std::vector<float> obstacle_height;  ///< [m] above the ground, NaN unknown
   };
   using Key = std::int64_t;
   static Key key(int tile_row, int tile_col) {

@@ -41,9 +41,11 @@ struct IncrementalEstimatorOptions {
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
+  bool temporal_checkerboard = false;     ///< temporal pairs use every other pixel
   double max_residual_ratio = 3.0;        ///< median residual above ratio * the usual level ...
   double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
   int min_samples = 500;                  ///< fewer pixel samples in the final level: failure
+  double max_init_std_m = 0.05;           ///< map heights less certain are re-extended, not trusted [m]
   /// When the velocity is unknown (first tracked frame, after a failure), translations along the
   /// optical axis from motion_search_min_m to motion_search_max_m (per nominal frame period) are
   /// tried at the coarsest level and the cheapest starts the Gauss-Newton: far from the minimum
@@ -87,6 +89,7 @@ struct FrameResult {
   std::vector<AlignmentReport> reports;  ///< per mesh level, coarse to fine
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   int obstacle_pixels = 0;               ///< at the obstacle test level
+  int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
 };
 
 class IncrementalEstimator {

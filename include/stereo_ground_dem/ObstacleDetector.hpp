@@ -19,10 +19,12 @@
 /// obstacle and ground hidden behind it stays unobserved); their disparity gives the obstacle's
 /// position and height for the obstacle layer.
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
+#include "stereo_ground_dem/GroundGrid.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/PhotometricParams.hpp"
 #include "stereo_ground_dem/StereoRig.hpp"
@@ -51,10 +53,30 @@ struct ObstacleMask {
   cv::Mat disparity;              ///< at the test level: obstacle disparity in level-0 pixels, 0 = none
   int level = 2;                  ///< the test level
   int pixels = 0;                 ///< obstacle pixels at the test level
+
+  /// The 3-D points [m] of the obstacle pixels (from their disparity) in the ground frame.
+  std::vector<Eigen::Vector3d> groundPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;
+};
+
+/// Per-vertex obstacle evidence of one frame on a grid.
+struct ObstacleEvidence {
+  std::vector<uint8_t> hit;     ///< vertex hidden by, or under, an obstacle
+  std::vector<uint8_t> ground;  ///< vertex seen as ground (its pixels fit the surface)
+  Eigen::VectorXd height;       ///< obstacle height above the surface [m], NaN where no 3-D point
 };
 
 class ObstacleDetector {
  public:
+  /// Evidence on `grid` (surface `heights`): a vertex is hit when its triangles' pixels were mostly
+  /// excluded as obstacle pixels (more than `hidden_ratio` times its ground pixels; the ground
+  /// there is hidden) or when at least `min_points` obstacle points at least
+  /// `min_obstacle_height_m` above the surface fall into its cell; it is ground when it had
+  /// `min_ground_pixels` ground pixels and no hit.
+  static ObstacleEvidence evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                   const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
+                                   const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
+                                   int min_ground_pixels, double min_obstacle_height_m, int min_points = 2);
+
   explicit ObstacleDetector(const ObstacleDetectorOptions& options);
 
   /// `ground_inverse_depth` is the current ground surface's inverse depth [1/m] at the test level

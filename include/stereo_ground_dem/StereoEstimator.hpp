@@ -35,6 +35,10 @@ struct StereoEstimatorOptions {
   /// Update constraint mu_v = update_weight * (1 + (depth_v / update_reference_depth_m)^2) [1/m^2].
   double update_weight = 1e3;
   double update_reference_depth_m = 10.0;
+  /// Vertices whose triangles hold more obstacle pixels than this times their ground pixels are
+  /// hidden by an obstacle: unknown in the DEM, obstacle in the obstacle layer.
+  double hidden_pixel_ratio = 0.3;
+  int min_ground_pixels = 6;            ///< fewer pixels: the vertex is not observed
   bool use_hierarchy = true;            ///< false: the finest mesh only, at pyramid levels L-1..0
   double presmooth_sigma_px = 0.8;      ///< Gaussian blur of level 0 (see ImagePyramid)
   int iterations_per_level = 8;
@@ -56,6 +60,11 @@ struct StereoResult {
   std::vector<AlignmentReport> reports;  ///< plane fit levels, then mesh levels
   double median_abs_residual_grey = 0.0;
   ObstacleMask obstacles;                ///< pixels excluded from the ground data term
+  /// Per vertex: 1 obstacle (hidden by or under one), 0 ground seen, NaN unknown; and the
+  /// obstacle's height above the surface [m] where 3-D obstacle points fell (NaN elsewhere).
+  Eigen::VectorXd obstacle, obstacle_height;
+  ObstacleEvidence obstacle_evidence;
+  Eigen::VectorXi excluded_pixels;      ///< per vertex, obstacle pixels of its triangles at level 0
 };
 
 class StereoEstimator {

@@ -13,8 +13,10 @@
 /// Cost (all terms are sums of squares, in chi^2-like units):
 ///   C = C_D + C_S + C_P, and each step adds the update constraint C_U = sum_c mu_c dtheta_c^2;
 ///   C_D = 4^level / sigma^2 * sum_pairs sum_pixels rho(I0[u] - a_j Ij[H_j u] - b_j), rho Cauchy;
-///   C_S = lambda_s * sum_stencils (s / h^2)^2 (z_a - 2 z_b + z_c)^2 over the fine grid's rows, columns
-///         and diagonals (h = s or s sqrt 2), approximately lambda_s * integral of squared curvature;
+///   C_S = sum_stencils rho_s(sqrt(lambda_s) s / h^2 (z_a - 2 z_b + z_c)) over the fine grid's rows,
+///         columns and diagonals (h = s or s sqrt 2): approximately lambda_s * integral of squared
+///         curvature where the surface bends gently, and a Cauchy rho_s beyond a bend of
+///         smoothness_robust_scale_m, so that steps and curbs are not smeared;
 ///   C_P = sum_v info_v (z_v - prior_v)^2.
 
 #include <Eigen/Core>
@@ -37,6 +39,9 @@ struct SurfaceAlignerOptions {
   double robust_scale_grey = 6.0;          ///< Cauchy scale [grey levels]; <= 0: plain least squares
   double image_noise_std_grey = 2.0;       ///< sigma of the photometric residual [grey levels]
   double smoothness_weight = 200.0;        ///< lambda_s [m^2]
+  /// Cauchy scale of the second differences [m]; <= 0: quadratic smoothness. Bends much larger
+  /// than this (a curb, a step) cost little more than this, so the surface can break there.
+  double smoothness_robust_scale_m = 0.03;
   double min_depth_m = 3.0;                ///< triangles need all vertices at camera depth >= this [m]
   double max_depth_m = 40.0;               ///< ... and <= this [m]
   double max_lateral_m = 25.0;             ///< ... and |camera x| <= this [m]
@@ -72,6 +77,9 @@ struct AlignerTarget {
   Eigen::Isometry3d target_T_reference = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d target_T_ground = Eigen::Isometry3d::Identity();
   bool estimate_photometric = true;
+  /// Use every other reference pixel (a checkerboard) for this pair: half the cost, for pairs
+  /// whose information is mostly about the six motion parameters.
+  bool checkerboard = false;
 };
 
 /// What is estimated; updated in place by align().
@@ -130,6 +138,8 @@ struct AlignmentReport {
   /// (information about the height) [1/m^2], and the number of pixels in its triangles.
   Eigen::VectorXd vertex_information;
   Eigen::VectorXi vertex_pixels;
+  /// Per fine vertex: pixels of its triangles excluded by AlignmentProblem::excluded (obstacles).
+  Eigen::VectorXi vertex_excluded_pixels;
   /// Information of the motion (6x6, heights marginalized) if motion was estimated and
   /// AlignmentProblem::want_motion_information was set.
   Matrix6d motion_information = Matrix6d::Zero();

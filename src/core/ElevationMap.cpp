@@ -13,7 +13,7 @@ namespace stereo_ground_dem {
 namespace {
 int floorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-constexpr char kMagic[8] = {'S', 'G', 'D', 'T', 'I', 'L', 'E', '1'};
+constexpr char kMagic[8] = {'S', 'G', 'D', 'T', 'I', 'L', 'E', '2'};
 }  // namespace
 
 bool ElevationMapOptions::isValid(std::string* why) const {
@@ -47,6 +47,8 @@ ElevationMap::Tile* ElevationMap::tileFor(int lr, int lc, bool create, int* inde
   t.information.assign(n, 0.0f);
   t.observations.assign(n, 0);
   t.last_update.assign(n, -1);
+  t.obstacle_score.assign(n, 0.0f);
+  t.obstacle_height.assign(n, kNaN);
   return &tiles_.emplace(k, std::move(t)).first->second;
 }
 
@@ -99,6 +101,29 @@ void ElevationMap::fuse(const GroundGrid& w, const Eigen::VectorXd& heights, con
   }
 }
 
+void ElevationMap::updateObstacles(const GroundGrid& w, const std::vector<uint8_t>& hit,
+                                   const std::vector<uint8_t>& ground, const Eigen::VectorXd& height, int frame_index) {
+  for (int r = 0; r < w.rows; ++r) {
+    for (int c = 0; c < w.cols; ++c) {
+      const size_t v = static_cast<size_t>(w.index(r, c));
+      if (!hit[v] && !ground[v]) continue;
+      int i = 0;
+      Tile* t = tileFor(w.row0 + r, w.col0 + c, hit[v] != 0, &i);
+      if (!t) continue;
+      const size_t si = static_cast<size_t>(i);
+      float& s = t->obstacle_score[si];
+      if (hit[v]) {
+        s = std::min(options_.obstacle_max_score, s + options_.obstacle_hit);
+        if (std::isfinite(height[static_cast<Eigen::Index>(v)])) t->obstacle_height[si] = static_cast<float>(height[static_cast<Eigen::Index>(v)]);
+        t->last_update[si] = std::max(t->last_update[si], frame_index);
+      } else {
+        s = std::max(-options_.obstacle_max_score, s - options_.obstacle_miss);
+        if (s < options_.obstacle_hit) t->obstacle_height[si] = kNaN;
+      }
+    }
+  }
+}
+
 void ElevationMap::archive(Key k, const Tile& t) const {
   if (options_.archive_directory.empty()) return;
   const int tr = static_cast<int>(k >> 32);
@@ -116,6 +141,8 @@ void ElevationMap::archive(Key k, const Tile& t) const {
   out.write(reinterpret_cast<const char*>(t.information.data()), n * 4);
   out.write(reinterpret_cast<const char*>(t.observations.data()), n * 2);
   out.write(reinterpret_cast<const char*>(t.last_update.data()), n * 4);
+  out.write(reinterpret_cast<const char*>(t.obstacle_score.data()), n * 4);
+  out.write(reinterpret_cast<const char*>(t.obstacle_height.data()), n * 4);
 }
 
 int ElevationMap::loadArchive(const std::string& directory) {
@@ -143,10 +170,14 @@ int ElevationMap::loadArchive(const std::string& directory) {
     t.information.resize(n);
     t.observations.resize(n);
     t.last_update.resize(n);
+    t.obstacle_score.resize(n);
+    t.obstacle_height.resize(n);
     in.read(reinterpret_cast<char*>(t.height.data()), static_cast<std::streamsize>(n * 4));
     in.read(reinterpret_cast<char*>(t.information.data()), static_cast<std::streamsize>(n * 4));
     in.read(reinterpret_cast<char*>(t.observations.data()), static_cast<std::streamsize>(n * 2));
     in.read(reinterpret_cast<char*>(t.last_update.data()), static_cast<std::streamsize>(n * 4));
+    in.read(reinterpret_cast<char*>(t.obstacle_score.data()), static_cast<std::streamsize>(n * 4));
+    in.read(reinterpret_cast<char*>(t.obstacle_height.data()), static_cast<std::streamsize>(n * 4));
     if (!in) {
       closedir(d);
       throw std::runtime_error("ElevationMap: archive tile '" + name + "' is truncated");
@@ -207,7 +238,10 @@ GroundGrid ElevationMap::knownBounds() const {
     const int tr = static_cast<int>(kv.first >> 32);
     const int tc = static_cast<int>(static_cast<std::int32_t>(kv.first & 0xffffffff));
     for (int i = 0; i < ts * ts; ++i) {
-      if (!std::isfinite(kv.second.height[static_cast<size_t>(i)])) continue;
+      if (!std::isfinite(kv.second.height[static_cast<size_t>(i)]) &&
+          kv.second.obstacle_score[static_cast<size_t>(i)] < options_.obstacle_hit) {
+        continue;
+      }
       const int r = tr * ts + i / ts, c = tc * ts + i % ts;
       rmin = std::min(rmin, r);
       rmax = std::max(rmax, r);
@@ -232,12 +266,23 @@ cv::Mat ElevationMap::layer(Layer which, const GroundGrid& w) const {
       const Tile* t = tileFor(w.row0 + r, w.col0 + c, &i);
       if (!t) continue;
       const size_t si = static_cast<size_t>(i);
+      const bool obstacle = t->obstacle_score[si] >= options_.obstacle_hit;
+      if (which == Layer::kObstacle) {
+        if (obstacle) row[c] = 1.0f;
+        else if (std::isfinite(t->height[si])) row[c] = 0.0f;
+        continue;
+      }
+      if (which == Layer::kObstacleHeight) {
+        if (obstacle) row[c] = t->obstacle_height[si];
+        continue;
+      }
       if (!std::isfinite(t->height[si])) continue;
       switch (which) {
         case Layer::kElevation: row[c] = t->height[si]; break;
         case Layer::kVariance: row[c] = t->information[si] > 0.0f ? 1.0f / t->information[si] : kNaN; break;
         case Layer::kObservations: row[c] = t->observations[si]; break;
         case Layer::kLastUpdate: row[c] = static_cast<float>(t->last_update[si]); break;
+        default: break;
       }
     }
   }
@@ -251,7 +296,7 @@ void ElevationMap::clear() {
 
 size_t ElevationMap::memoryBytes() const {
   const size_t n = static_cast<size_t>(options_.tile_size) * static_cast<size_t>(options_.tile_size);
-  return tiles_.size() * (n * (4 + 4 + 2 + 4) + sizeof(Tile) + 32);
+  return tiles_.size() * (n * (4 + 4 + 2 + 4 + 4 + 4) + sizeof(Tile) + 32);
 }
 
 }  // namespace stereo_ground_dem

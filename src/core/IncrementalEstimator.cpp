@@ -47,6 +47,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
     return bad("max_residual_ratio must exceed 1 and max_residual_increase_grey be > 0");
   }
   if (min_samples < 0) return bad("min_samples must be >= 0");
+  if (!(max_init_std_m > 0.0)) return bad("max_init_std_m must be > 0");
   if (!(motion_search_step_m > 0.0) || !(motion_search_max_m >= motion_search_min_m)) {
     return bad("need motion_search_step_m > 0 and motion_search_max_m >= motion_search_min_m");
   }
@@ -163,31 +164,56 @@ GroundGrid IncrementalEstimator::viewWindow(const Eigen::Isometry3d& camera_T_gr
 void IncrementalEstimator::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camera_T_ground,
                                           Eigen::VectorXd* heights, Eigen::VectorXd* information) const {
   map_.sample(w, heights, information);
-  // Extend the surface: a plane fitted to the known heights (weighted by information), or the
-  // level plane under the camera when too little is known.
-  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  // Weakly known heights (seen by a few pixels at long range) are not trusted as a start: a vertex
+  // that starts far too low hides behind its neighbours and never gets the pixels to correct it.
+  const double min_info = 1.0 / (options_.max_init_std_m * options_.max_init_std_m);
   int known = 0;
   for (int v = 0; v < w.vertexCount(); ++v) {
-    if (!std::isfinite((*heights)[v])) continue;
-    const Eigen::Vector2d xy = w.position(v);
-    const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
-    const double wt = std::min((*information)[v], 1e4) + 1.0;
-    ata += wt * a * a.transpose();
-    atb += wt * a * (*heights)[v];
-    ++known;
+    if (!std::isfinite((*heights)[v]) || (*information)[v] < min_info) {
+      (*heights)[v] = std::numeric_limits<double>::quiet_NaN();
+      (*information)[v] = 0.0;
+    } else {
+      ++known;
+    }
   }
-  Eigen::Vector3d pqc;
-  const Eigen::Vector3d cam = camera_T_ground.inverse().translation();
-  if (known >= 20 && ata.determinant() > 1e-9 * std::pow(ata.trace(), 3)) {
-    pqc = ata.ldlt().solve(atb);
-  } else {
-    pqc = Eigen::Vector3d(0.0, 0.0, cam.z() - options_.stereo.nominal_height_m);
+  if (known == w.vertexCount()) return;
+  // Extend the surface: start from a plane fitted to the known heights (or the level plane under
+  // the camera), then relax the unknown heights to the harmonic extension of the known ones
+  // (each the mean of its neighbours; exact for planes), so that a hill or a dip continues.
+  Eigen::Vector3d pqc(0.0, 0.0, camera_T_ground.inverse().translation().z() - options_.stereo.nominal_height_m);
+  if (known >= 20) {
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    for (int v = 0; v < w.vertexCount(); ++v) {
+      if (!std::isfinite((*heights)[v])) continue;
+      const Eigen::Vector2d xy = w.position(v);
+      const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
+      const double wt = std::min((*information)[v], 1e4) + 1.0;
+      ata += wt * a * a.transpose();
+      atb += wt * a * (*heights)[v];
+    }
+    if (ata.determinant() > 1e-9 * std::pow(ata.trace(), 3)) pqc = ata.ldlt().solve(atb);
   }
+  std::vector<int> todo;
   for (int v = 0; v < w.vertexCount(); ++v) {
     if (std::isfinite((*heights)[v])) continue;
     const Eigen::Vector2d xy = w.position(v);
     (*heights)[v] = pqc.x() * xy.x() + pqc.y() * xy.y() + pqc.z();
+    todo.push_back(v);
+  }
+  if (known < 20) return;
+  for (int sweep = 0; sweep < 60; ++sweep) {
+    for (int v : todo) {
+      const int r = w.rowOf(v), c = w.colOf(v);
+      double sum = 0.0;
+      int n = 0;
+      for (const auto& d : {std::make_pair(0, 1), std::make_pair(0, -1), std::make_pair(1, 0), std::make_pair(-1, 0)}) {
+        if (!w.contains(r + d.first, c + d.second)) continue;
+        sum += (*heights)[w.index(r + d.first, c + d.second)];
+        ++n;
+      }
+      if (n > 0) (*heights)[v] = sum / n;
+    }
   }
 }
 
@@ -303,6 +329,8 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     std::vector<uint8_t> update(static_cast<size_t>(sr.grid.vertexCount()));
     for (int v = 0; v < sr.grid.vertexCount(); ++v) update[static_cast<size_t>(v)] = std::isfinite(sr.heights[v]);
     map_.fuse(sr.grid, sr.heights, Eigen::VectorXd::Zero(sr.grid.vertexCount()), sr.information, update, res.frame_index);
+    map_.updateObstacles(sr.grid, sr.obstacle_evidence.hit, sr.obstacle_evidence.ground, sr.obstacle_evidence.height,
+                         res.frame_index);
     res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
     initialized_ = true;
     velocity_.setZero();
@@ -347,6 +375,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prev_l.pyramid = prev_left_.get();
   prev_l.rig_fixed = false;
   prev_l.target_T_ground = prev_c_T_g;
+  prev_l.checkerboard = options_.temporal_checkerboard;
   AlignerTarget prev_r = prev_l;
   prev_r.pyramid = prev_right_.get();
   prev_r.target_T_ground = rigTransform(rig_) * prev_c_T_g;
@@ -376,8 +405,10 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     Vector6d no_turn = velocity_ * dt;
     no_turn.tail<3>().setZero();
     const Eigen::Isometry3d starts[2] = {predicted, Se3::exp(no_turn) * prev_c_T_g};
-    double best = std::numeric_limits<double>::infinity();
+    double best = std::numeric_limits<double>::infinity(), best_residual = 0.0;
     for (int k = 0; k < (velocity_known_ ? 2 : 1); ++k) {
+      // the second start only when the first did not align well
+      if (k == 1 && std::isfinite(best) && best_residual <= options_.max_residual_ratio * residual_level_) break;
       SurfaceState s;
       s.camera_T_ground = starts[k];
       s.heights = heights;
@@ -389,6 +420,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
       if (cost < best) {
         best = cost;
+        best_residual = rep.median_abs_residual_grey;
         state.camera_T_ground = s.camera_T_ground;
         state.photometric = s.photometric;
       }
@@ -472,6 +504,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   int jumps = 0, well_known = 0;
   for (int v = 0; v < window.vertexCount(); ++v) {
     if (last.vertex_pixels.size() == 0 || last.vertex_pixels[v] == 0 || !std::isfinite(state.heights[v])) continue;
+    if (last.vertex_pixels[v] < so.min_ground_pixels) continue;
+    // Seen mostly through obstacle pixels: the ground there is hidden, not observed.
+    if (last.vertex_excluded_pixels[v] > so.hidden_pixel_ratio * last.vertex_pixels[v]) continue;
     update[static_cast<size_t>(v)] = 1;
     if (info[v] > 1e3) {  // std below ~3 cm
       ++well_known;
@@ -512,6 +547,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // ---- 5. fuse, advance
   const Eigen::VectorXd fused_prior_info = prob.prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
   map_.fuse(window, state.heights, fused_prior_info, last.vertex_information, update, res.frame_index);
+  const ObstacleEvidence oe = ObstacleDetector::evidence(
+      window, state.heights, last.vertex_pixels, last.vertex_excluded_pixels,
+      obstacles.groundPoints(rig_, state.camera_T_ground.inverse()), so.hidden_pixel_ratio, so.min_ground_pixels,
+      so.obstacles.min_obstacle_height_m);
+  map_.updateObstacles(window, oe.hit, oe.ground, oe.height, res.frame_index);
+  res.obstacle_vertices = static_cast<int>(std::count(oe.hit.begin(), oe.hit.end(), 1));
   res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
   velocity_ = step / dt;
   velocity_known_ = true;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -22,6 +23,56 @@ bool ObstacleDetectorOptions::isValid(std::string* why) const {
   if (!(ground_band_m >= 0.0) || !(ground_band_m < camera_height_m)) return bad("ground_band_m must be in [0, camera_height_m)");
   if (dilation_px < 0) return bad("dilation_px must be >= 0");
   return true;
+}
+
+std::vector<Eigen::Vector3d> ObstacleMask::groundPoints(const StereoRig& rig,
+                                                        const Eigen::Isometry3d& ground_T_camera) const {
+  std::vector<Eigen::Vector3d> pts;
+  if (disparity.empty()) return pts;
+  const double scale = std::ldexp(1.0, level);  // test-level pixel -> level-0 pixel
+  for (int v = 0; v < disparity.rows; ++v) {
+    const float* d = disparity.ptr<float>(v);
+    for (int u = 0; u < disparity.cols; ++u) {
+      if (!(d[u] > 0.0f)) continue;
+      const double z = rig.disparityTimesDepth() / d[u];
+      const Eigen::Vector3d xc((u * scale - rig.cx) * z / rig.fx, (v * scale - rig.cy) * z / rig.fy, z);
+      pts.push_back(ground_T_camera * xc);
+    }
+  }
+  return pts;
+}
+
+ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                            const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
+                                            const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
+                                            int min_ground_pixels, double min_height, int min_points) {
+  const int n = grid.vertexCount();
+  ObstacleEvidence ev;
+  ev.hit.assign(static_cast<size_t>(n), 0);
+  ev.ground.assign(static_cast<size_t>(n), 0);
+  ev.height = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  std::vector<int> count(static_cast<size_t>(n), 0);
+  for (const auto& p : points) {
+    const int c = static_cast<int>(std::lround(p.x() / grid.resolution_m)) - grid.col0;
+    const int r = static_cast<int>(std::lround(p.y() / grid.resolution_m)) - grid.row0;
+    if (!grid.contains(r, c)) continue;
+    const int v = grid.index(r, c);
+    if (!std::isfinite(heights[v])) continue;
+    const double above = p.z() - heights[v];
+    if (above < min_height) continue;
+    ++count[static_cast<size_t>(v)];
+    ev.height[v] = std::isfinite(ev.height[v]) ? std::max(ev.height[v], above) : above;
+  }
+  for (int v = 0; v < n; ++v) {
+    const bool hidden = ground_pixels.size() == n && excluded_pixels.size() == n && excluded_pixels[v] > 0 &&
+                        excluded_pixels[v] > hidden_ratio * ground_pixels[v];
+    const bool points_here = count[static_cast<size_t>(v)] >= min_points;
+    if (!points_here) ev.height[v] = std::numeric_limits<double>::quiet_NaN();
+    ev.hit[static_cast<size_t>(v)] = hidden || points_here;
+    ev.ground[static_cast<size_t>(v)] =
+        !ev.hit[static_cast<size_t>(v)] && ground_pixels.size() == n && ground_pixels[v] >= min_ground_pixels;
+  }
+  return ev;
 }
 
 ObstacleDetector::ObstacleDetector(const ObstacleDetectorOptions& options) : options_(options) {

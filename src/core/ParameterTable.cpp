@@ -50,6 +50,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("plane_fit_max_range_m", &s.plane_fit_max_range_m, "start-up plane fitted on ground up to [m]");
   // cost terms
   d("smoothness_weight", &a.smoothness_weight, "lambda_s, weight of the integrated squared curvature [m^2]", true);
+  d("smoothness_robust_scale_m", &a.smoothness_robust_scale_m, "Cauchy scale of second differences, <= 0 quadratic [m]", true);
   d("update_weight", &s.update_weight, "update constraint mu at 0 m depth [1/m^2]", true);
   d("update_reference_depth_m", &s.update_reference_depth_m, "mu grows as (1 + (depth/this)^2) [m]", true);
   b("use_hierarchy", &s.use_hierarchy, "coarse-to-fine meshes (false: finest mesh at every level)");
@@ -71,6 +72,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("obstacle_level", &ob.level, "pyramid level of the obstacle test");
   d("min_obstacle_height_m", &ob.min_obstacle_height_m, "upright surfaces at least this high are obstacles [m]", true);
   d("obstacle_cost_ratio", &ob.cost_ratio, "obstacle when its photometric cost < ratio * ground's", true);
+  d("hidden_pixel_ratio", &s.hidden_pixel_ratio, "vertex hidden by an obstacle when obstacle pixels > ratio * ground pixels", true);
+  i("min_ground_pixels", &s.min_ground_pixels, "vertices with fewer ground pixels are not observed", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   // failure handling and input checks
   d("max_speed_m_per_s", &e.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
@@ -79,6 +82,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("max_jump_fraction", &e.max_jump_fraction, "... for more than this fraction of them", true);
   i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
   i("prealign_level", &e.prealign_level, "pyramid level of the motion-only pre-alignment", true);
+  b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
   d("max_residual_ratio", &e.max_residual_ratio, "median residual above this times the usual: failure", true);
   d("max_residual_increase_grey", &e.max_residual_increase_grey, "... and above the usual plus this [grey]", true);

@@ -28,6 +28,7 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
     return bad("update_weight must be >= 0 and update_reference_depth_m > 0");
   }
   if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
+  if (!(hidden_pixel_ratio >= 0.0) || min_ground_pixels < 1) return bad("need hidden_pixel_ratio >= 0 and min_ground_pixels >= 1");
   std::string w;
   if (!aligner.isValid(&w)) return bad("aligner: " + w);
   if (!obstacles.isValid(&w)) return bad("obstacles: " + w);
@@ -283,8 +284,19 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   res.heights = state.heights;
   res.information = last.vertex_information;
   res.pixels = last.vertex_pixels;
+  res.excluded_pixels = last.vertex_excluded_pixels;
+  res.obstacle_evidence = ObstacleDetector::evidence(
+      res.grid, state.heights, res.pixels, res.excluded_pixels, res.obstacles.groundPoints(rig_, res.ground_T_camera),
+      o.hidden_pixel_ratio, o.min_ground_pixels, o.obstacles.min_obstacle_height_m);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  res.obstacle = Eigen::VectorXd::Constant(res.grid.vertexCount(), nan);
+  res.obstacle_height = res.obstacle_evidence.height;
   for (int v = 0; v < res.grid.vertexCount(); ++v) {
-    if (res.pixels[v] == 0) res.heights[v] = std::numeric_limits<double>::quiet_NaN();
+    const bool hit = res.obstacle_evidence.hit[static_cast<size_t>(v)];
+    if (hit) res.obstacle[v] = 1.0;
+    else if (res.obstacle_evidence.ground[static_cast<size_t>(v)]) res.obstacle[v] = 0.0;
+    // unseen, weakly seen or hidden ground stays unknown rather than invented
+    if (hit || res.pixels[v] < o.min_ground_pixels) res.heights[v] = nan;
   }
   res.photometric = state.photometric[0];
   res.median_abs_residual_grey = last.median_abs_residual_grey;

@@ -83,12 +83,14 @@ struct Chunk {
   std::vector<std::vector<double>> tri;  ///< [pair] stride * triangles
   std::vector<PairAccumulator> pair;
   std::vector<int> tri_pixels;
+  std::vector<int> tri_excluded;  ///< pixels of the triangle masked out as obstacles
   std::vector<float> abs_residuals;
   void reset(const std::vector<int>& strides, size_t nt) {
     tri.resize(strides.size());
     for (size_t j = 0; j < strides.size(); ++j) tri[j].assign(static_cast<size_t>(strides[j]) * nt, 0.0);
     pair.assign(strides.size(), PairAccumulator());
     tri_pixels.assign(nt, 0);
+    tri_excluded.assign(nt, 0);
     abs_residuals.clear();
   }
 };
@@ -98,6 +100,8 @@ struct Evaluation {
   /// Triangles that own at least one pixel get a slot; accumulators are per slot.
   std::vector<int> slot_of;   ///< triangle -> slot or -1
   std::vector<int> slot_tri;  ///< slot -> triangle
+  std::vector<double> smooth_residual;  ///< per stencil: w (z_a - 2 z_b + z_d)
+  std::vector<double> smooth_weight;    ///< per stencil: robust (IRLS) weight
   double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
   double total() const { return data_cost + smoothness_cost + prior_cost; }
   const Chunk& sums() const { return chunks[0]; }
@@ -119,6 +123,7 @@ struct PairContext {
   Eigen::Vector3d t_prime;  ///< R_j^T t_j
   bool horizontal_only;     ///< R = I and t = (tx, 0, 0): warps move along rows only
   bool world;               ///< world-fixed pair with motion estimated: accumulate Jm
+  bool checkerboard;        ///< use every other pixel only
   int photo_index = -1;     ///< first global index of (dg, db), -1 when fixed
   PhotometricParams photometric;
   const cv::Mat* image;
@@ -175,8 +180,10 @@ class LevelSolver {
     data_scale_ = std::ldexp(1.0, 2 * p.level) / (o.image_noise_std_grey * o.image_noise_std_grey);
     selectWorkingSet(g, s);
     buildBasis();
-    buildSmoothness(g);
-    buildPattern();
+    if (p.estimate_heights) {  // motion/photometry only: no height block to build
+      buildSmoothness(g);
+      buildPattern();
+    }
     global_count_ = o.estimate_motion ? 6 : 0;
     photo_index_.assign(p.targets.size(), -1);
     for (size_t j = 0; j < p.targets.size(); ++j) {
@@ -206,6 +213,7 @@ class LevelSolver {
       c.horizontal_only = (r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12 &&
                           std::abs(tt.y()) < 1e-12 && std::abs(tt.z()) < 1e-12;
       c.world = opt_.estimate_motion && !t.rig_fixed;
+      c.checkerboard = t.checkerboard;
       c.photo_index = photo_index_[j];
       c.photometric = s.photometric[j];
       c.image = &t.pyramid->level(prob_.level).image;
@@ -321,13 +329,31 @@ class LevelSolver {
         for (size_t i = 0; i < n; ++i) dst[i] += src[i];
         sum.pair[j].add(o.pair[j]);
       }
-      for (size_t i = 0; i < ns; ++i) sum.tri_pixels[i] += o.tri_pixels[i];
+      for (size_t i = 0; i < ns; ++i) {
+        sum.tri_pixels[i] += o.tri_pixels[i];
+        sum.tri_excluded[i] += o.tri_excluded[i];
+      }
       sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
     }
     ev->data_cost = 0.0;
     for (const auto& pa : sum.pair) ev->data_cost += data_scale_ * pa.cost;
     const Eigen::VectorXd za = activeHeights(s);
-    ev->smoothness_cost = (smooth_ * za).squaredNorm();
+    ev->smoothness_cost = 0.0;
+    ev->smooth_residual.resize(stencils_.size());
+    ev->smooth_weight.resize(stencils_.size());
+    for (size_t k = 0; k < stencils_.size(); ++k) {
+      const Stencil& st = stencils_[k];
+      const double r = st.w * (za[st.v[0]] - 2.0 * za[st.v[1]] + za[st.v[2]]);
+      ev->smooth_residual[k] = r;
+      if (smooth_c2_ > 0.0) {
+        const double c2 = smooth_c2_ * st.w * st.w;
+        ev->smoothness_cost += c2 * std::log1p(r * r / c2);
+        ev->smooth_weight[k] = 1.0 / (1.0 + r * r / c2);
+      } else {
+        ev->smoothness_cost += r * r;
+        ev->smooth_weight[k] = 1.0;
+      }
+    }
     ev->prior_cost = 0.0;
     if (prob_.prior) {
       for (size_t a = 0; a < active_.size(); ++a) {
@@ -343,25 +369,36 @@ class LevelSolver {
 
   /// The pixel loop over rows [v0, v1): residuals, robust weights and the inverse compositional
   /// Jacobians accumulated per triangle and pair.
+  /// The reference pixels of one row that take part: column, slot and per-pixel constants.
+  struct RowPixels {
+    std::vector<int> u, slot, tri;
+    std::vector<float> i0, c0, c1, c2, x;
+    void clear() {
+      u.clear();
+      slot.clear();
+      tri.clear();
+      i0.clear();
+      c0.clear();
+      c1.clear();
+      c2.clear();
+      x.clear();
+    }
+  };
+
+  /// The pixel loop over rows [v0, v1): residuals, robust weights and the inverse compositional
+  /// Jacobians accumulated per triangle and pair. Sums run in float over the pixels of one
+  /// triangle in a row and are flushed into the double accumulators when the triangle changes.
   void accumulateRows(const std::vector<PairContext>& pc, const Evaluation& ev, int v0, int v1, Chunk* ch) const {
     const size_t np = pc.size();
     const size_t ns = ev.slot_tri.size();
     const int* slot_of = ev.slot_of.data();
     const TriangleRasterizer& raster = ws_->raster;
-    const auto& hom = ws_->homographies;
-    const bool robust = opt_.robust_scale_grey > 0.0;
-    const float c2 = static_cast<float>(opt_.robust_scale_grey * opt_.robust_scale_grey);
-    const float inv_c2 = robust ? 1.0f / c2 : 0.0f;
-    auto rho = [&](float e) { return robust ? c2 * fastLog1p(e * e * inv_c2) : e * e; };
-    const double outside_cost = rho(static_cast<float>(
-        opt_.outside_penalty_factor * (robust ? opt_.robust_scale_grey : opt_.image_noise_std_grey)));
     const float dark = static_cast<float>(opt_.dark_level_grey);
     const float sat = static_cast<float>(opt_.saturated_level_grey);
     const float fx = static_cast<float>(rig_.fx), fy = static_cast<float>(rig_.fy);
     const float cx = static_cast<float>(rig_.cx), cy = static_cast<float>(rig_.cy);
     const cv::Mat& labels = raster.labels();
-    constexpr int kSampleStride = 7;  // every 7th residual feeds the median statistic
-    int sample_counter = 0;
+    RowPixels px;
     for (int v = v0; v < v1; ++v) {
       const int b = raster.rowBegin(v), e_col = raster.rowEnd(v);
       if (b > e_col) continue;
@@ -371,96 +408,39 @@ class LevelSolver {
       const float* gvrow = ref_->grad_v.ptr<float>(v);
       const uint8_t* exrow = excluded_ ? excluded_->ptr<uint8_t>(v) : nullptr;
       const float y = (static_cast<float>(v) - cy) / fy;
-      const float vf = static_cast<float>(v);
+      px.clear();
       for (int u = b; u <= e_col; ++u) {
         const int tl = lab[u];
         if (tl < 0) continue;
-        const int ti = slot_of[tl];  // the slot: accumulators and homographies are per slot
+        const int ti = slot_of[tl];
+        if (exrow && exrow[u]) {
+          ch->tri_excluded[static_cast<size_t>(ti)]++;
+          continue;
+        }
         const float i0 = i0row[u];
-        if (i0 <= dark || i0 >= sat || (exrow && exrow[u])) continue;
+        if (i0 <= dark || i0 >= sat) continue;
         ch->tri_pixels[static_cast<size_t>(ti)]++;
         const float x = (static_cast<float>(u) - cx) / fx;
-        const float uf = static_cast<float>(u);
-        const double gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
-        const double c0 = gfu, c1 = gfv, c2v = -(gfu * x + gfv * y);
-        for (size_t j = 0; j < np; ++j) {
-          const PairContext& p = pc[j];
-          const auto& h = hom[j * ns + static_cast<size_t>(ti)];
-          const cv::Mat& img = *p.image;
-          PairAccumulator& pa = ch->pair[j];
-          float uj, vj;
-          if (p.horizontal_only) {
-            uj = h[0] * uf + h[1] * vf + h[2];
-            vj = vf;
-          } else {
-            const float wz = h[6] * uf + h[7] * vf + h[8];
-            if (!(wz > 1e-6f)) {
-              pa.cost += outside_cost;
-              pa.outside++;
-              continue;
-            }
-            const float iw = 1.0f / wz;
-            uj = (h[0] * uf + h[1] * vf + h[2]) * iw;
-            vj = (h[3] * uf + h[4] * vf + h[5]) * iw;
-          }
-          if (!(uj >= 0.0f && vj >= 0.0f && uj < img.cols - 1 && vj < img.rows - 1)) {
-            pa.cost += outside_cost;
-            pa.outside++;
-            continue;
-          }
-          const float ij = bilinear(img, uj, vj);
-          if (ij <= dark || ij >= sat) continue;
-          const float ef = static_cast<float>(i0 - (p.photometric.gain * ij + p.photometric.bias_grey));
-          const double e = ef;
-          const double w = robust ? 1.0 / (1.0 + ef * ef * inv_c2) : 1.0;
-          pa.cost += rho(ef);
-          pa.valid++;
-          if ((++sample_counter % kSampleStride) == 0) ch->abs_residuals.push_back(std::abs(ef));
-          const double sc = c0 * p.t_prime.x() + c1 * p.t_prime.y() + c2v * p.t_prime.z();
-          const double j0 = sc * x, j1 = sc * y, j2 = sc;
-          const double w0 = w * j0, w1 = w * j1, w2 = w * j2;
-          double* a = ch->tri[j].data() + static_cast<size_t>(ti) * static_cast<size_t>(p.world ? kStrideWorld : kStrideRig);
-          a[0] += w0 * j0;
-          a[1] += w0 * j1;
-          a[2] += w0 * j2;
-          a[3] += w1 * j1;
-          a[4] += w1 * j2;
-          a[5] += w2 * j2;
-          a[6] += w0 * e;
-          a[7] += w1 * e;
-          a[8] += w2 * e;
-          if (p.photo_index >= 0) {
-            a[9] += w0 * i0;
-            a[10] += w0;
-            a[11] += w1 * i0;
-            a[12] += w1;
-            a[13] += w2 * i0;
-            a[14] += w2;
-            pa.pp(0, 0) += w * i0 * i0;
-            pa.pp(0, 1) += w * i0;
-            pa.pp(1, 1) += w;
-            pa.pe(0) += w * e * i0;
-            pa.pe(1) += w * e;
-          }
-          if (p.world) {
-            const double rho_u = tris_[static_cast<size_t>(tl)].m.dot(Eigen::Vector3d(x, y, 1.0));
-            const double jm[6] = {rho_u * c0, rho_u * c1, rho_u * c2v, y * c2v - c1, c0 - x * c2v, x * c1 - y * c0};
-            double* am = a + 15;
-            for (int c = 0; c < 6; ++c) {
-              am[c] += w0 * jm[c];
-              am[6 + c] += w1 * jm[c];
-              am[12 + c] += w2 * jm[c];
-            }
-            for (int r = 0; r < 6; ++r) {
-              const double wr = w * jm[r];
-              for (int c = r; c < 6; ++c) pa.mm(r, c) += wr * jm[c];
-              pa.me(r) += wr * e;
-              if (p.photo_index >= 0) {
-                pa.mp(r, 0) += wr * i0;
-                pa.mp(r, 1) += wr;
-              }
-            }
-          }
+        const float gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
+        px.u.push_back(u);
+        px.slot.push_back(ti);
+        px.tri.push_back(tl);
+        px.i0.push_back(i0);
+        px.c0.push_back(gfu);
+        px.c1.push_back(gfv);
+        px.c2.push_back(-(gfu * x + gfv * y));
+        px.x.push_back(x);
+      }
+      if (px.u.empty()) continue;
+      for (size_t j = 0; j < np; ++j) {
+        const PairContext& p = pc[j];
+        const bool photo = p.photo_index >= 0;
+        if (p.world) {
+          if (p.horizontal_only) pairRow<true, true>(p, j, ns, v, y, px, ch, photo);
+          else pairRow<false, true>(p, j, ns, v, y, px, ch, photo);
+        } else {
+          if (p.horizontal_only) pairRow<true, false>(p, j, ns, v, y, px, ch, photo);
+          else pairRow<false, false>(p, j, ns, v, y, px, ch, photo);
         }
       }
     }
@@ -468,6 +448,151 @@ class LevelSolver {
       pa.pp(1, 0) = pa.pp(0, 1);
       for (int r = 0; r < 6; ++r)
         for (int c = 0; c < r; ++c) pa.mm(r, c) = pa.mm(c, r);
+    }
+  }
+
+  template <bool kHorizontal, bool kWorld>
+  void pairRow(const PairContext& p, size_t j, size_t ns, int v, float y, const RowPixels& px, Chunk* ch,
+               bool photo) const {
+    constexpr int kStride = kWorld ? kStrideWorld : kStrideRig;
+    const auto& hom = ws_->homographies;
+    const cv::Mat& img = *p.image;
+    const float wmax = static_cast<float>(img.cols - 1), hmax = static_cast<float>(img.rows - 1);
+    const bool robust = opt_.robust_scale_grey > 0.0;
+    const float c2r = static_cast<float>(opt_.robust_scale_grey * opt_.robust_scale_grey);
+    const float inv_c2 = robust ? 1.0f / c2r : 0.0f;
+    auto rho = [&](float e) { return robust ? c2r * fastLog1p(e * e * inv_c2) : e * e; };
+    const float outside_cost = rho(static_cast<float>(
+        opt_.outside_penalty_factor * (robust ? opt_.robust_scale_grey : opt_.image_noise_std_grey)));
+    const float dark = static_cast<float>(opt_.dark_level_grey);
+    const float sat = static_cast<float>(opt_.saturated_level_grey);
+    const float gain = static_cast<float>(p.photometric.gain), bias = static_cast<float>(p.photometric.bias_grey);
+    const float tx = static_cast<float>(p.t_prime.x()), ty = static_cast<float>(p.t_prime.y()),
+                tz = static_cast<float>(p.t_prime.z());
+    const float vf = static_cast<float>(v);
+    PairAccumulator& pa = ch->pair[j];
+    double* tri_acc = ch->tri[j].data();
+    // Sums in double: a triangle's 3x3 block is nearly rank-deficient (its pixels' rays are
+    // nearly parallel); float sums make it indefinite.
+    double run[kStride];
+    int run_slot = -1;
+    auto flush = [&]() {
+      if (run_slot < 0) return;
+      double* a = tri_acc + static_cast<size_t>(run_slot) * kStride;
+      for (int k = 0; k < kStride; ++k) a[k] += run[k];
+    };
+    // per-row global sums in float, flushed to double at the end of the row
+    double gpp[3] = {0, 0, 0}, gpe[2] = {0, 0}, gmm[21] = {}, gme[6] = {}, gmp[12] = {};
+    float cost = 0.0f;
+    int valid = 0, outside = 0;
+    const bool odd_row = (v & 1) != 0;
+    const size_t n = px.u.size();
+    for (size_t k = 0; k < n; ++k) {
+      const int u = px.u[k];
+      if (p.checkerboard && (((u & 1) != 0) != odd_row)) continue;
+      const int slot = px.slot[k];
+      const auto& h = hom[j * ns + static_cast<size_t>(slot)];
+      const float uf = static_cast<float>(u);
+      float uj, vj;
+      if (kHorizontal) {
+        uj = h[0] * uf + h[1] * vf + h[2];
+        vj = vf;
+      } else {
+        const float wz = h[6] * uf + h[7] * vf + h[8];
+        if (!(wz > 1e-6f)) {
+          cost += outside_cost;
+          ++outside;
+          continue;
+        }
+        const float iw = 1.0f / wz;
+        uj = (h[0] * uf + h[1] * vf + h[2]) * iw;
+        vj = (h[3] * uf + h[4] * vf + h[5]) * iw;
+      }
+      if (!(uj >= 0.0f && vj >= 0.0f && uj < wmax && vj < hmax)) {
+        cost += outside_cost;
+        ++outside;
+        continue;
+      }
+      const float ij = bilinear(img, uj, vj);
+      if (ij <= dark || ij >= sat) continue;
+      const float i0 = px.i0[k];
+      const float e = i0 - (gain * ij + bias);
+      const float w = robust ? 1.0f / (1.0f + e * e * inv_c2) : 1.0f;
+      cost += rho(e);
+      ++valid;
+      if ((valid & 7) == 0) ch->abs_residuals.push_back(std::abs(e));
+      if (slot != run_slot) {
+        flush();
+        run_slot = slot;
+        std::fill(run, run + kStride, 0.0);
+      }
+      const double c0 = px.c0[k], c1 = px.c1[k], c2 = px.c2[k], x = px.x[k];
+      const double sc = c0 * tx + c1 * ty + c2 * tz;
+      const double j0 = sc * x, j1 = sc * y, j2 = sc;
+      const double ew = e, w0 = w * j0, w1 = w * j1, w2 = w * j2;
+      run[0] += w0 * j0;
+      run[1] += w0 * j1;
+      run[2] += w0 * j2;
+      run[3] += w1 * j1;
+      run[4] += w1 * j2;
+      run[5] += w2 * j2;
+      run[6] += w0 * ew;
+      run[7] += w1 * ew;
+      run[8] += w2 * ew;
+      if (photo) {
+        run[9] += w0 * i0;
+        run[10] += w0;
+        run[11] += w1 * i0;
+        run[12] += w1;
+        run[13] += w2 * i0;
+        run[14] += w2;
+        gpp[0] += static_cast<double>(w) * i0 * i0;
+        gpp[1] += w * i0;
+        gpp[2] += w;
+        gpe[0] += w * ew * i0;
+        gpe[1] += w * ew;
+      }
+      if (kWorld) {
+        const Eigen::Vector3d& m = tris_[static_cast<size_t>(px.tri[k])].m;
+        const double rho_u = m.x() * x + m.y() * y + m.z();
+        const double jm[6] = {rho_u * c0, rho_u * c1, rho_u * c2, y * c2 - c1, c0 - x * c2, x * c1 - y * c0};
+        double* am = run + 15;
+        for (int c = 0; c < 6; ++c) {
+          am[c] += w0 * jm[c];
+          am[6 + c] += w1 * jm[c];
+          am[12 + c] += w2 * jm[c];
+        }
+        int q = 0;
+        for (int r = 0; r < 6; ++r) {
+          const double wr = w * jm[r];
+          for (int c = r; c < 6; ++c) gmm[q++] += wr * jm[c];
+          gme[r] += wr * ew;
+          if (photo) {
+            gmp[2 * r] += wr * i0;
+            gmp[2 * r + 1] += wr;
+          }
+        }
+      }
+    }
+    flush();
+    pa.cost += cost;
+    pa.valid += valid;
+    pa.outside += outside;
+    if (photo) {
+      pa.pp(0, 0) += gpp[0];
+      pa.pp(0, 1) += gpp[1];
+      pa.pp(1, 1) += gpp[2];
+      pa.pe(0) += gpe[0];
+      pa.pe(1) += gpe[1];
+    }
+    if (kWorld) {
+      int q = 0;
+      for (int r = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c) pa.mm(r, c) += gmm[q++];
+        pa.me(r) += gme[r];
+        pa.mp(r, 0) += gmp[2 * r];
+        pa.mp(r, 1) += gmp[2 * r + 1];
+      }
     }
   }
 
@@ -520,7 +645,9 @@ class LevelSolver {
       pc = zc + beta * pc;
       if (m > 0) pg = zg + beta * pg;
     }
-    return false;
+    // Not at the tolerance: an inexact Newton step is still a descent direction worth trying
+    // (the step is accepted only if the cost drops) when the residual fell by 100x.
+    return std::sqrt(rc.squaredNorm() + rg.squaredNorm()) < 1e-2 * b_norm;
   }
 
   Step solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report, bool need_schur = false) {
@@ -531,8 +658,18 @@ class LevelSolver {
     // Height block on the fixed pattern: smoothness (constant) + data + prior.
     SpMat& hzz = hzz_;
     Eigen::Map<Eigen::VectorXd> values(hzz.valuePtr(), hzz.nonZeros());
-    values = smooth_values_;
+    values.setZero();
     Eigen::VectorXd gz = Eigen::VectorXd::Zero(na);
+    static constexpr double kCoef[3] = {1.0, -2.0, 1.0};
+    for (size_t k = 0; k < stencils_.size(); ++k) {
+      const Stencil& st = stencils_[k];
+      const double om = ev.smooth_weight[k];
+      const double ww = om * st.w * st.w;
+      for (int a = 0; a < 3; ++a) {
+        gz[st.v[a]] += om * ev.smooth_residual[k] * st.w * kCoef[a];
+        for (int b = 0; b < 3; ++b) values[st.idx[a * 3 + b]] += ww * kCoef[a] * kCoef[b];
+      }
+    }
     Eigen::MatrixXd hzg = Eigen::MatrixXd::Zero(na, ng);
     Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
     Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
@@ -624,8 +761,6 @@ class LevelSolver {
       return step;
     }
     // Smoothness and prior gradients on the fine active heights.
-    const Eigen::VectorXd za = activeHeights(s);
-    gz += smooth_t_smooth_ * za;
     if (prob_.prior) {
       for (int a = 0; a < na; ++a) {
         const int v = active_[static_cast<size_t>(a)];
@@ -738,9 +873,13 @@ class LevelSolver {
 
   void fillPixels(const Evaluation& ev, AlignmentReport* report) const {
     report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+    report->vertex_excluded_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
     for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
       const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
-      for (int a = 0; a < 3; ++a) report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
+      for (int a = 0; a < 3; ++a) {
+        report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
+        report->vertex_excluded_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_excluded[k2];
+      }
     }
   }
 
@@ -838,18 +977,17 @@ class LevelSolver {
     const double s = g.resolution_m;
     const double w_axis = std::sqrt(opt_.smoothness_weight) / s;
     const double w_diag = std::sqrt(opt_.smoothness_weight) / (2.0 * s);
-    std::vector<Eigen::Triplet<double>> trip;
-    int row = 0;
+    stencils_.clear();
     auto add = [&](int r, int c, int dr, int dc, double w) {
       if (!g.contains(r - dr, c - dc) || !g.contains(r + dr, c + dc)) return;
       const int a = local_[static_cast<size_t>(g.index(r - dr, c - dc))];
       const int b = local_[static_cast<size_t>(g.index(r, c))];
       const int d = local_[static_cast<size_t>(g.index(r + dr, c + dc))];
       if (a < 0 || b < 0 || d < 0) return;
-      trip.emplace_back(row, a, w);
-      trip.emplace_back(row, b, -2.0 * w);
-      trip.emplace_back(row, d, w);
-      ++row;
+      Stencil st;
+      st.v = {a, b, d};
+      st.w = w;
+      stencils_.push_back(st);
     };
     if (opt_.smoothness_weight > 0.0) {
       for (int v : active_) {
@@ -859,9 +997,11 @@ class LevelSolver {
         add(r, c, 1, 1, w_diag);
       }
     }
-    smooth_.resize(row, activeCount());
-    smooth_.setFromTriplets(trip.begin(), trip.end());
-    smooth_t_smooth_ = smooth_.transpose() * smooth_;
+    // Robust scale of a stencil's second difference [m]: larger bends (a curb, a step) are
+    // down-weighted (Cauchy), so the surface may break there instead of smearing the step.
+    smooth_c2_ = opt_.smoothness_robust_scale_m > 0.0
+                     ? opt_.smoothness_robust_scale_m * opt_.smoothness_robust_scale_m
+                     : 0.0;
   }
 
   /// The fixed sparsity pattern of the height block (triangles, smoothness, diagonal) and where
@@ -869,13 +1009,14 @@ class LevelSolver {
   void buildPattern() {
     const int na = activeCount();
     std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + static_cast<size_t>(smooth_t_smooth_.nonZeros()));
+    trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + stencils_.size() * 9);
     for (const auto& t : tris_)
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)], 0.0);
     for (int a = 0; a < na; ++a) trip.emplace_back(a, a, 0.0);
-    for (int k = 0; k < smooth_t_smooth_.outerSize(); ++k)
-      for (SpMat::InnerIterator it(smooth_t_smooth_, k); it; ++it) trip.emplace_back(it.row(), it.col(), 0.0);
+    for (const auto& st : stencils_)
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) trip.emplace_back(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)], 0.0);
     hzz_.resize(na, na);
     hzz_.setFromTriplets(trip.begin(), trip.end());
     hzz_.makeCompressed();
@@ -891,10 +1032,9 @@ class LevelSolver {
           t.value_index[static_cast<size_t>(r * 3 + c)] = index(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)]);
     diag_index_.resize(static_cast<size_t>(na));
     for (int a = 0; a < na; ++a) diag_index_[static_cast<size_t>(a)] = index(a, a);
-    smooth_values_ = Eigen::VectorXd::Zero(hzz_.nonZeros());
-    for (int k = 0; k < smooth_t_smooth_.outerSize(); ++k)
-      for (SpMat::InnerIterator it(smooth_t_smooth_, k); it; ++it)
-        smooth_values_[index(static_cast<int>(it.row()), static_cast<int>(it.col()))] += it.value();
+    for (auto& st : stencils_)
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) st.idx[static_cast<size_t>(a * 3 + b)] = index(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)]);
   }
 
   const SurfaceAlignerOptions& opt_;
@@ -914,10 +1054,15 @@ class LevelSolver {
   int control_count_ = 0;
   SpMat basis_, basis_t_;     ///< active rows x compact controls
   Eigen::VectorXd mu_;
-  SpMat smooth_, smooth_t_smooth_;
+  struct Stencil {
+    std::array<int, 3> v{};    ///< compact indices of the three collinear vertices
+    double w = 0.0;            ///< sqrt(lambda) / h-scaled weight of the second difference
+    std::array<int, 9> idx{};  ///< positions of its 3x3 block in the height matrix' values
+  };
+  std::vector<Stencil> stencils_;
+  double smooth_c2_ = 0.0;
   SpMat hzz_, hcc_;
   std::vector<int> diag_index_;
-  Eigen::VectorXd smooth_values_;
   Eigen::SimplicialLDLT<SpMat> chol_;
   bool analyzed_ = false;
   Eigen::Index analyzed_nnz_ = 0;
@@ -971,6 +1116,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   if (solver.empty()) {
     report.vertex_information = Eigen::VectorXd::Zero(problem.grid->vertexCount());
     report.vertex_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
+    report.vertex_excluded_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
     return report;
   }
   Evaluation* ev = &ws.eval[0];

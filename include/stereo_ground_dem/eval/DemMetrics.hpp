@@ -1,0 +1,49 @@
+#pragma once
+/// \file DemMetrics.hpp
+/// A DEM against the exact terrain of a synthetic scene.
+///
+/// The estimated DEM lives in the estimated ground frame; it is brought into the true ground frame
+/// through the first camera: true_T_est = true ground_T_camera0 * (estimated ground_T_camera0)^-1.
+/// A vertex's error is its height there minus the terrain height at its (x, y). Vertices are
+/// grouped by the smallest camera depth at which any frame saw them inside the image's
+/// horizontal field of view ("seen within d m").
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/GroundGrid.hpp"
+#include "stereo_ground_dem/StereoRig.hpp"
+#include "stereo_ground_dem/sim/SyntheticScene.hpp"
+
+namespace stereo_ground_dem {
+
+struct HeightErrorStats {
+  double min_depth_m = 0.0, max_depth_m = 0.0;  ///< the bin: seen within [min, max)
+  int count = 0;
+  double median_m = 0.0, rmse_m = 0.0, p95_m = 0.0;  ///< of |error|
+  double coverage = 0.0;  ///< known vertices / vertices seen in this bin (terrain, no obstacle)
+};
+
+struct DemMetrics {
+  std::vector<HeightErrorStats> bins;  ///< 0-10, 10-20, 20-30, 30-40 m
+  HeightErrorStats within_20m;         ///< everything seen within 20 m
+  int known_vertices = 0;
+  int obstacle_vertices = 0;           ///< known vertices inside an obstacle footprint (excluded)
+  // traversability: "blocked" = traversability < 0.5 (or an obstacle footprint in the truth)
+  int trav_compared = 0;
+  double trav_precision = 0.0;  ///< of the blocked class
+  double trav_recall = 0.0;
+  double trav_accuracy = 0.0;
+  cv::Mat signed_error;  ///< per vertex of the estimated grid: estimate - truth [m], NaN unknown/obstacle
+
+  /// `camera0_T_camera` are the true poses of the frames (poses.txt), `times_s` their stamps.
+  static DemMetrics compute(const GroundGrid& grid, const cv::Mat& elevation, const cv::Mat& traversability,
+                            const Eigen::Isometry3d& est_ground_T_camera0, const sim::SyntheticScene& scene,
+                            const Eigen::Isometry3d& true_ground_T_camera0,
+                            const std::vector<Eigen::Isometry3d>& camera0_T_camera, const std::vector<double>& times_s,
+                            const StereoRig& rig, const cv::Mat& true_traversability = cv::Mat());
+};
+
+}  // namespace stereo_ground_dem

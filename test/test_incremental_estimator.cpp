@@ -1,0 +1,184 @@
+// Incremental mode over rendered sequences: trajectory and DEM accuracy, and every kind of bad
+// input the issue names (black, saturated, frozen frames, dropped frames, exposure jumps, wrong
+// sizes), each followed by correct tracking and an untouched map.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <opencv2/imgproc.hpp>
+
+#include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/eval/DemMetrics.hpp"
+#include "stereo_ground_dem/eval/TrajectoryMetrics.hpp"
+#include "stereo_ground_dem/sim/SequenceGenerator.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+struct Sequence {
+  sim::SyntheticScene scene;
+  StereoRig rig;
+  sim::SequenceGenerator gen;
+};
+
+std::unique_ptr<Sequence> makeSequence(sim::SceneKind kind, int frames, bool gain_drift) {
+  sim::SceneOptions so = sim::SceneOptions::standard(kind, 3);
+  sim::SyntheticScene scene(so);
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  sim::SequenceOptions sq;
+  sq.frames = frames;
+  if (gain_drift) {
+    sq.gain_start = 0.75;
+    sq.gain_end = 1.25;
+    sq.right_gain_ratio = 1.03;
+    sq.right_bias_grey = 4.0;
+  }
+  return std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, sq)});
+}
+
+/// The true camera0_T_camera of frame k.
+Eigen::Isometry3d truth(const Sequence& s, int k) {
+  return s.gen.frames()[0].ground_T_left.inverse() * s.gen.frames()[static_cast<size_t>(k)].ground_T_left;
+}
+
+double positionError(const Sequence& s, const FrameResult& r, int k) {
+  return (r.camera0_T_camera.translation() - truth(s, k).translation()).norm();
+}
+
+cv::Mat layer(const ElevationMap& m, const GroundGrid& g) { return m.layer(ElevationMap::Layer::kElevation, g); }
+
+bool sameMap(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size()) return false;
+  for (int r = 0; r < a.rows; ++r)
+    for (int c = 0; c < a.cols; ++c) {
+      const float x = a.at<float>(r, c), y = b.at<float>(r, c);
+      if (std::isnan(x) != std::isnan(y) || (!std::isnan(x) && x != y)) return false;
+    }
+  return true;
+}
+
+}  // namespace
+
+// Measured (this code, 30 frames, 29 m): flat drift 0.04 %, bump 0.12 %; DEM within 20 m flat
+// median 0.15 cm / p95 1.0 cm, bump 0.7 / 3.0 cm. Targets of the issue: 0.5 %, 2 cm, 6 cm.
+class SyntheticSequence : public ::testing::TestWithParam<sim::SceneKind> {};
+
+TEST_P(SyntheticSequence, TrajectoryAndDemMatchTheTruth) {
+  const int n = 30;
+  const auto seq = makeSequence(GetParam(), n, true);
+  IncrementalEstimator est(seq->rig, IncrementalEstimatorOptions());
+  std::vector<Eigen::Isometry3d> poses, gt;
+  std::vector<double> times;
+  for (int k = 0; k < n; ++k) {
+    const sim::RenderedPair p = seq->gen.render(k);
+    const FrameResult r = est.processFrame(p.left.image, p.right.image, seq->gen.frames()[static_cast<size_t>(k)].time_s);
+    ASSERT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked)
+        << "frame " << k << ": " << toString(r.status) << " " << r.message;
+    poses.push_back(r.camera0_T_camera);
+    gt.push_back(truth(*seq, k));
+    times.push_back(seq->gen.frames()[static_cast<size_t>(k)].time_s);
+  }
+  const TrajectoryMetrics tm = TrajectoryMetrics::compute(poses, gt);
+  EXPECT_LT(tm.end_drift_pct, 0.3);
+  EXPECT_LT(tm.rel_rotation_max_deg, 0.05);
+  const GroundGrid grid = est.map().knownBounds();
+  const DemMetrics dm = DemMetrics::compute(grid, layer(est.map(), grid), cv::Mat(), est.groundTCamera0(),
+                                            seq->scene, seq->gen.frames()[0].ground_T_left, gt, times, seq->rig);
+  EXPECT_GT(dm.within_20m.count, 4000);
+  EXPECT_GT(dm.within_20m.coverage, 0.95);
+  EXPECT_LT(dm.within_20m.median_m, 0.012);
+  EXPECT_LT(dm.within_20m.p95_m, 0.04);
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, SyntheticSequence,
+                         ::testing::Values(sim::SceneKind::kFlatRoad, sim::SceneKind::kBumpAndCurb),
+                         [](const ::testing::TestParamInfo<sim::SceneKind>& i) {
+                           return std::string(sim::sceneKindName(i.param)) == "flat" ? "FlatRoad" : "BumpAndCurb";
+                         });
+
+TEST(IncrementalEstimator, BadFramesAreRejectedAndLeaveTheMapAlone) {
+  const int n = 14;
+  const auto seq = makeSequence(sim::SceneKind::kFlatRoad, n, false);
+  std::vector<sim::RenderedPair> frames;
+  for (int k = 0; k < n; ++k) frames.push_back(seq->gen.render(k));
+  IncrementalEstimator est(seq->rig, IncrementalEstimatorOptions());
+  auto stamp = [&](int k) { return seq->gen.frames()[static_cast<size_t>(k)].time_s; };
+  for (int k = 0; k < 4; ++k) ASSERT_NE(est.processFrame(frames[k].left.image, frames[k].right.image, stamp(k)).status, FrameStatus::kFailed);
+  const GroundGrid grid = est.map().bounds();
+  const cv::Mat before = layer(est.map(), grid);
+  auto expectRejected = [&](const cv::Mat& l, const cv::Mat& r, double t, const char* what) {
+    const FrameResult res = est.processFrame(l, r, t);
+    EXPECT_EQ(res.status, FrameStatus::kRejectedInput) << what;
+    EXPECT_NE(res.message.find(what), std::string::npos) << res.message;
+    EXPECT_TRUE(sameMap(before, layer(est.map(), grid))) << what << ": the map changed";
+  };
+  const cv::Mat black(seq->rig.height, seq->rig.width, CV_8U, cv::Scalar(0));
+  const cv::Mat white(seq->rig.height, seq->rig.width, CV_8U, cv::Scalar(255));
+  expectRejected(black, frames[4].right.image, stamp(4), "black");
+  expectRejected(frames[4].left.image, white, stamp(4), "saturated");
+  expectRejected(frames[3].left.image, frames[3].right.image, stamp(4), "frozen");
+  cv::Mat small;
+  cv::resize(frames[4].left.image, small, cv::Size(), 0.5, 0.5);
+  expectRejected(small, frames[4].right.image, stamp(4), "differ in size");
+  expectRejected(small, small, stamp(4), "does not match the calibration");
+  expectRejected(frames[4].left.image, frames[4].right.image, std::nan(""), "not finite");
+  expectRejected(frames[4].left.image, frames[4].right.image, stamp(1), "backwards");
+  EXPECT_EQ(est.rejectedInputs(), 7);
+  // ... and tracking goes on as if nothing happened
+  for (int k = 4; k < 8; ++k) {
+    const FrameResult r = est.processFrame(frames[k].left.image, frames[k].right.image, stamp(k));
+    ASSERT_EQ(r.status, FrameStatus::kTracked) << "frame " << k << ": " << r.message;
+    EXPECT_LT(positionError(*seq, r, k), 0.01) << "frame " << k;
+  }
+  // Dropped frames: 8, 9 and 10 never arrive; frame 11 is 4 periods after frame 7.
+  const FrameResult r = est.processFrame(frames[11].left.image, frames[11].right.image, stamp(11));
+  ASSERT_EQ(r.status, FrameStatus::kTracked) << r.message;
+  EXPECT_LT(positionError(*seq, r, 11), 0.02);
+  EXPECT_EQ(est.failures(), 0);
+}
+
+TEST(IncrementalEstimator, SuddenExposureJump) {
+  // The camera's gain jumps by 60 % between frames 5 and 6 (both images) and back at frame 9.
+  const int n = 11;
+  const auto seq = makeSequence(sim::SceneKind::kFlatRoad, n, false);
+  IncrementalEstimator est(seq->rig, IncrementalEstimatorOptions());
+  for (int k = 0; k < n; ++k) {
+    sim::RenderedPair p = seq->gen.render(k);
+    if (k >= 6 && k < 9) {
+      p.left.image.convertTo(p.left.image, CV_8U, 1.6, -20.0);
+      p.right.image.convertTo(p.right.image, CV_8U, 1.6, -20.0);
+    }
+    const FrameResult r = est.processFrame(p.left.image, p.right.image, seq->gen.frames()[static_cast<size_t>(k)].time_s);
+    ASSERT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked)
+        << "frame " << k << ": " << r.message;
+    EXPECT_LT(positionError(*seq, r, k), 0.01) << "frame " << k;
+    if (k == 6) {
+      // I_6 = 1.6 I_5 - 20: the temporal pairs' gain is ~1.6, the stereo pair's unchanged (~1)
+      EXPECT_NEAR(r.photometric[1].gain, 1.6, 0.06);  // measured 1.637 (rounding, clipped pixels)
+      EXPECT_NEAR(r.photometric[0].gain, 1.0, 0.03);
+    }
+  }
+}
+
+TEST(IncrementalEstimator, MapMemoryIsBounded) {
+  // A 3 km drive in the ground lattice: tiles beyond keep_radius_m are evicted, so the number
+  // of tiles (and the map's memory) stays flat after the first few hundred metres.
+  ElevationMapOptions mo;
+  mo.keep_radius_m = 150.0;
+  ElevationMap map(mo);
+  size_t peak_early = 0, peak_late = 0;
+  for (int k = 0; k <= 3000; ++k) {
+    const double x = k * 1.0;  // 1 m per frame
+    const GroundGrid w = GroundGrid::covering(x + 4.0, x + 40.0, -20.0, 20.0, mo.resolution_m);
+    Eigen::VectorXd h = Eigen::VectorXd::Zero(w.vertexCount()), info = Eigen::VectorXd::Constant(w.vertexCount(), 100.0);
+    map.fuse(w, h, Eigen::VectorXd::Zero(w.vertexCount()), info, std::vector<uint8_t>(static_cast<size_t>(w.vertexCount()), 1), k);
+    map.evictFarFrom(x, 0.0);
+    // the count cycles as the window crosses tile borders: compare the peaks of two periods
+    if (k >= 200 && k < 400) peak_early = std::max(peak_early, map.tileCount());
+    if (k >= 2800) peak_late = std::max(peak_late, map.tileCount());
+  }
+  EXPECT_GT(peak_early, 5u);
+  EXPECT_LE(peak_late, peak_early);
+  EXPECT_GT(map.evictedTiles(), 50);
+  EXPECT_LT(map.memoryBytes(), 4u << 20);  // < 4 MB at 0.5 m, 150 m radius
+}
