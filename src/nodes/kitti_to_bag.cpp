@@ -8,12 +8,25 @@
 // /NS/right/image_rect, /NS/right/camera_info (mono8, mono16 or bgr8 as the PNGs are), /clock.
 // Stamps: --start-time + times.txt (or index * 0.1 s). camera_info: P from calib.txt (right
 // P(0,3) = -fx * baseline), K the same intrinsics, R identity, no distortion (rectified).
+// --static-tf adds a latched /tf_static base_link -> camera (camera --camera-height above
+// base_link, looking along its x axis, optical axes: z forward, x right, y down).
+//
+// Test bags with defects (FRAMES is a comma-separated list of frame indices):
+//   --bad-size FRAMES      right image one column narrower than the left (and its camera_info)
+//   --bad-encoding FRAMES  both images labelled bayer_rggb8
+//   --drop-info FRAMES     no left camera_info for these frames (the pair never synchronizes)
+//   --drop FRAMES          nothing at all for these frames (a gap of dropped frames)
 #include <ros/time.h>
 #include <rosbag/bag.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/image_encodings.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <boost/make_shared.hpp>
+#include <set>
+#include <sstream>
 
 #include <cmath>
 #include <cstdio>
@@ -37,14 +50,38 @@ const char* kUsage =
     "  --namespace NS     topic namespace (default stereo): /NS/left/image_rect, /NS/left/camera_info, ...\n"
     "  --frame-id F       header.frame_id of images and camera_info (default left_camera_optical)\n"
     "  --start-time S     stamp of time 0 of times.txt [s since the epoch] (default 1000000000)\n"
-    "  --clock-hz H       /clock messages per second of bag time (default 100; 0: none)\n";
+    "  --clock-hz H       /clock messages per second of bag time (default 100; 0: none)\n"
+    "  --static-tf        write /tf_static BASE -> frame-id (camera CAMERA_HEIGHT above BASE, optical axes)\n"
+    "  --base-frame BASE  (default base_link)\n"
+    "  --camera-height H  [m] (default 1.65, KITTI)\n"
+    "  --bad-size FRAMES  right image and camera_info one column narrower (FRAMES: 3,4,7)\n"
+    "  --bad-encoding FRAMES  images labelled bayer_rggb8\n"
+    "  --drop-info FRAMES no left camera_info for these frames\n"
+    "  --drop FRAMES      nothing for these frames (a gap)\n";
 
 struct Args {
   std::string sequence, out, ns = "stereo", frame_id = "left_camera_optical";
   int frames = -1;
   double start_time = 1e9;
   double clock_hz = 100.0;
+  bool static_tf = false;
+  std::string base_frame = "base_link";
+  double camera_height = 1.65;
+  std::set<int> bad_size, bad_encoding, drop_info, drop;
 };
+
+std::set<int> frameList(const std::string& flag, const std::string& text) {
+  std::set<int> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    char* end = nullptr;
+    const long v = std::strtol(item.c_str(), &end, 10);
+    if (item.empty() || *end != '\0' || v < 0) throw std::invalid_argument(flag + " expects frame indices like 3,4,7, got '" + text + "'");
+    out.insert(static_cast<int>(v));
+  }
+  return out;
+}
 
 double number(const std::string& flag, const std::string& text) {
   char* end = nullptr;
@@ -71,6 +108,13 @@ Args parse(int argc, char** argv) {
     else if (k == "--frame-id") a.frame_id = value();
     else if (k == "--start-time") a.start_time = number(k, value());
     else if (k == "--clock-hz") a.clock_hz = number(k, value());
+    else if (k == "--static-tf") a.static_tf = true;
+    else if (k == "--base-frame") a.base_frame = value();
+    else if (k == "--camera-height") a.camera_height = number(k, value());
+    else if (k == "--bad-size") a.bad_size = frameList(k, value());
+    else if (k == "--bad-encoding") a.bad_encoding = frameList(k, value());
+    else if (k == "--drop-info") a.drop_info = frameList(k, value());
+    else if (k == "--drop") a.drop = frameList(k, value());
     else if (k == "-h" || k == "--help") {
       std::cout << kUsage;
       std::exit(0);
@@ -141,7 +185,28 @@ int run(const Args& a) {
       next_clock += 1.0 / a.clock_hz;
     }
   };
+  if (a.static_tf) {
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = ros::Time(a.start_time);
+    t.header.frame_id = a.base_frame;
+    t.child_frame_id = a.frame_id;
+    t.transform.translation.z = a.camera_height;
+    // columns of base_R_optical: optical x = -base y, optical y = -base z, optical z = base x
+    t.transform.rotation.x = -0.5;
+    t.transform.rotation.y = 0.5;
+    t.transform.rotation.z = -0.5;
+    t.transform.rotation.w = 0.5;
+    tf2_msgs::TFMessage m;
+    m.transforms.push_back(t);
+    auto header = boost::make_shared<ros::M_string>();
+    (*header)["latching"] = "1";
+    (*header)["callerid"] = "/kitti_to_bag";
+    bag.write("/tf_static", t.header.stamp, m, header);
+  }
+  int written = 0;
   for (int i = 0; i < n; ++i) {
+    if (a.drop.count(i)) continue;
+    ++written;
     cv::Mat left, right;
     seq.read(i, &left, &right);
     const double t = a.start_time + (seq.stamp(i) - t0);
@@ -153,14 +218,24 @@ int run(const Args& a) {
     StereoRig r = rig;
     r.width = left.cols;
     r.height = left.rows;
-    bag.write(a.ns + "/left/image_rect", h.stamp, toImage(left, h));
-    bag.write(a.ns + "/left/camera_info", h.stamp, toInfo(r, 0.0, h));
-    bag.write(a.ns + "/right/image_rect", h.stamp, toImage(right, h));
-    bag.write(a.ns + "/right/camera_info", h.stamp, toInfo(r, -r.fx * r.baseline_m, h));
+    sensor_msgs::Image li = toImage(left, h), ri;
+    sensor_msgs::CameraInfo rci = toInfo(r, -r.fx * r.baseline_m, h);
+    if (a.bad_size.count(i)) {
+      ri = toImage(right(cv::Rect(0, 0, right.cols - 1, right.rows)).clone(), h);
+      rci.width -= 1;
+    } else {
+      ri = toImage(right, h);
+    }
+    if (a.bad_encoding.count(i)) li.encoding = ri.encoding = sensor_msgs::image_encodings::BAYER_RGGB8;
+    bag.write(a.ns + "/left/image_rect", h.stamp, li);
+    if (!a.drop_info.count(i)) bag.write(a.ns + "/left/camera_info", h.stamp, toInfo(r, 0.0, h));
+    bag.write(a.ns + "/right/image_rect", h.stamp, ri);
+    bag.write(a.ns + "/right/camera_info", h.stamp, rci);
   }
   bag.close();
-  std::printf("wrote %d stereo frames (%dx%d, baseline %.4f m) to %s: %s/{left,right}/{image_rect,camera_info}%s\n", n,
-              rig.width, rig.height, rig.baseline_m, a.out.c_str(), a.ns.c_str(), a.clock_hz > 0.0 ? ", /clock" : "");
+  std::printf("wrote %d stereo frames (%dx%d, baseline %.4f m) to %s: %s/{left,right}/{image_rect,camera_info}%s%s\n",
+              written, rig.width, rig.height, rig.baseline_m, a.out.c_str(), a.ns.c_str(),
+              a.clock_hz > 0.0 ? ", /clock" : "", a.static_tf ? ", /tf_static" : "");
   return 0;
 }
 

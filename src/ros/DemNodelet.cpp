@@ -90,6 +90,7 @@ class DemNodelet : public nodelet::Nodelet {
     double last_ms = 0.0, sum_ms = 0.0, max_ms = 0.0;
     double last_latency_ms = std::numeric_limits<double>::quiet_NaN();
     std::string last_problem;
+    bool last_problem_error = false;  ///< a skipped frame or a failure to start (not a warning)
     ros::WallTime last_problem_time;
     long synchronized_at_last_report = 0;
     ros::WallTime last_report_time;
@@ -412,6 +413,7 @@ void DemNodelet::reportProblem(const std::string& problem, bool error, bool skip
   std::lock_guard<std::mutex> lock(stats_mutex_);
   const ros::WallTime now = ros::WallTime::now();
   stats_.last_problem = problem;
+  stats_.last_problem_error = error;
   stats_.last_problem_time = now;
   if (skipped_frame) {
     ++stats_.skipped;
@@ -441,6 +443,14 @@ void DemNodelet::frameCb(const sensor_msgs::ImageConstPtr& left, const sensor_ms
   if (!check.ok) {
     reportProblem(check.problem, true, true);
     return;
+  }
+  {
+    std::string gap;
+    {
+      std::lock_guard<std::mutex> lock(monitor_mutex_);
+      gap = monitor_->frameGap(left->header.stamp.toSec());
+    }
+    if (!gap.empty()) reportProblem(gap, false, false);
   }
   cv_bridge::CvImageConstPtr cv_left, cv_right;
   try {
@@ -664,7 +674,7 @@ void DemNodelet::publishLayers(const DemLayers& d, const std_msgs::Header& heade
   if (grid_pub.getNumSubscribers() > 0) grid_pub.publish(HeightGridConverter::toMessage(d.grid, d.layers, header));
   if (occupancy_pub.getNumSubscribers() > 0) {
     occupancy_pub.publish(cost_table_.toOccupancyGrid(d.grid, *d.find("traversability"), *d.find("observations"),
-                                                      occupancy_unknown_below_, header));
+                                                      occupancy_unknown_below_, header, *d.find("obstacle")));
   }
   if (mesh_pub && mesh_pub->getNumSubscribers() > 0) {
     mesh_pub->publish(HeightMeshBuilder::build(d.grid, *d.find("elevation"), header, mesh_options_));
@@ -772,7 +782,7 @@ bool DemNodelet::saveSrv(SaveMap::Request& req, SaveMap::Response& res) {
     dem.elevation = d.find("elevation")->clone();
     dem.variance = d.find("variance")->clone();
     dem.traversability = d.find("traversability")->clone();
-    if (const cv::Mat* o = d.find("obstacle")) dem.obstacles = o->clone();
+    if (const cv::Mat* o = d.find("obstacle_height")) dem.obstacles = o->clone();
     dem.ground_T_camera0 = estimator_->groundTCamera0();
     dem.trajectory_xy = trajectory_xy_;
     dem.extra = {{"mode", "ROS node " + getName()}, {"frame_id", odom_frame_}};
@@ -856,7 +866,9 @@ void DemNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   } else if (stats_.consecutive_bad >= 3) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, stats_.last_problem);
   } else if (problem_age >= 0.0 && problem_age < 5.0) {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, stats_.last_problem);
+    stat.summary(stats_.last_problem_error ? diagnostic_msgs::DiagnosticStatus::ERROR
+                                           : diagnostic_msgs::DiagnosticStatus::WARN,
+                 stats_.last_problem);
   } else if (stats_.processed == 0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for the first synchronized stereo frame");
   } else {

@@ -45,4 +45,31 @@ std::string InputMonitor::check() {
   return os.str();
 }
 
+std::string InputMonitor::frameGap(double stamp_s, double gap_factor) {
+  std::string out;
+  if (last_valid_stamp_ < 0.0 || stamp_s < last_valid_stamp_) {
+    periods_.clear();
+  } else {
+    const double dt = stamp_s - last_valid_stamp_;
+    if (periods_.size() >= 2) {
+      std::vector<double> sorted = periods_;
+      std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+      const double usual = sorted[sorted.size() / 2];
+      if (usual > 0.0 && dt > gap_factor * usual) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "gap in the input: " << dt << " s between two valid stereo frames, about "
+           << std::lround(dt / usual) - 1 << " frames dropped or invalid (usual period " << usual << " s)";
+        out = os.str();
+      }
+    }
+    if (out.empty()) {  // gaps do not enter the statistics
+      periods_.push_back(dt);
+      if (periods_.size() > 15) periods_.erase(periods_.begin());
+    }
+  }
+  last_valid_stamp_ = stamp_s;
+  return out;
+}
+
 }  // namespace stereo_ground_dem

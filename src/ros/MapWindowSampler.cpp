@@ -66,6 +66,13 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
   const TraversabilityLayers t = filter_.compute(padded, elevation_padded);
   const cv::Rect inner(pad, pad, w.cols, w.rows);
 
+  // Obstacles (ElevationMap::Layer::kObstacle: 1 obstacle, 0 ground seen last, NaN unknown) are
+  // not traversable whatever the ground around them looks like: traversability 0 (lethal), also
+  // where the ground under the obstacle is unknown (hidden).
+  const cv::Mat obstacle = map.layer(ElevationMap::Layer::kObstacle, w);
+  cv::Mat traversability = t.traversability(inner).clone();
+  traversability.setTo(0.0f, obstacle >= 0.5f);  // NaN compares false: unknown stays as it is
+
   DemLayers out;
   out.grid = w;
   out.layers = {{"elevation", elevation_padded(inner).clone()},
@@ -74,7 +81,9 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
                 {"slope", t.slope_rad(inner).clone()},
                 {"step", t.step_m(inner).clone()},
                 {"roughness", t.roughness_m(inner).clone()},
-                {"traversability", t.traversability(inner).clone()}};
+                {"traversability", traversability},
+                {"obstacle", obstacle},
+                {"obstacle_height", map.layer(ElevationMap::Layer::kObstacleHeight, w)}};
   if (s > 1) {
     out.grid = w.coarsened(s);
     for (GridLayer& l : out.layers) {

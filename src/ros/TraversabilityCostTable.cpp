@@ -22,7 +22,8 @@ int8_t TraversabilityCostTable::occupancy(float t) const {
 
 nav_msgs::OccupancyGrid TraversabilityCostTable::toOccupancyGrid(const GroundGrid& grid, const cv::Mat& trav,
                                                                  const cv::Mat& observations, int min_observations,
-                                                                 const std_msgs::Header& header) const {
+                                                                 const std_msgs::Header& header,
+                                                                 const cv::Mat& obstacle) const {
   const cv::Size size(grid.cols, grid.rows);
   if (trav.type() != CV_32F || trav.size() != size) {
     throw std::invalid_argument("traversability layer does not match the grid");
@@ -30,6 +31,10 @@ nav_msgs::OccupancyGrid TraversabilityCostTable::toOccupancyGrid(const GroundGri
   const bool use_obs = !observations.empty();
   if (use_obs && (observations.type() != CV_32F || observations.size() != size)) {
     throw std::invalid_argument("observations layer does not match the grid");
+  }
+  const bool use_obstacle = !obstacle.empty();
+  if (use_obstacle && (obstacle.type() != CV_32F || obstacle.size() != size)) {
+    throw std::invalid_argument("obstacle layer does not match the grid");
   }
   nav_msgs::OccupancyGrid g;
   g.header = header;
@@ -45,10 +50,11 @@ nav_msgs::OccupancyGrid TraversabilityCostTable::toOccupancyGrid(const GroundGri
   for (int r = 0; r < grid.rows; ++r) {
     const float* t = trav.ptr<float>(r);
     const float* o = use_obs ? observations.ptr<float>(r) : nullptr;
+    const float* ob = use_obstacle ? obstacle.ptr<float>(r) : nullptr;
     int8_t* out = g.data.data() + static_cast<size_t>(r) * static_cast<size_t>(grid.cols);
     for (int c = 0; c < grid.cols; ++c) {
       const bool seen = !use_obs || (std::isfinite(o[c]) && o[c] >= static_cast<float>(min_observations));
-      out[c] = seen ? occupancy(t[c]) : kUnknown;
+      out[c] = ob && ob[c] >= 0.5f ? kLethal : seen ? occupancy(t[c]) : kUnknown;
     }
   }
   return g;

@@ -2,7 +2,10 @@
 /// \file MapWindowSampler.hpp
 /// The layers the node publishes, read from the core's ElevationMap over a window of its lattice:
 ///   elevation [m], variance [m^2], observations [frames] (ElevationMap::layer), and
-///   slope [rad], step [m], roughness [m], traversability [0..1] (TraversabilityFilter).
+///   slope [rad], step [m], roughness [m], traversability [0..1] (TraversabilityFilter), and
+///   obstacle [1 obstacle, 0 ground seen last], obstacle_height [m above the ground]
+///   (ElevationMap::Layer::kObstacle, kObstacleHeight). Traversability is 0 wherever obstacle is 1,
+///   also where the ground under the obstacle is unknown.
 /// All CV_32F, NaN where unknown. The filter runs on the window grown by its largest window
 /// radius so that cells at the border see the same neighbourhood as inside the map, then is
 /// cropped back. Large windows are decimated (every s-th vertex, the window aligned to s) to keep

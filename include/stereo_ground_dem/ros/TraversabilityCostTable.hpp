@@ -5,7 +5,9 @@
 ///   traversability t is quantized to bin b = round(255 * t) and
 ///   occupancy(b) = 100 (lethal) for b = 0 (t = 0: some ratio reached its critical value),
 ///                  min(99, round(100 * (1 - b / 255))) otherwise (0 = free for t = 1),
-///   -1 (unknown) for NaN, and for vertices observed by fewer than `min_observations` frames.
+///   -1 (unknown) for NaN, and for vertices observed by fewer than `min_observations` frames;
+///   100 (lethal) wherever the obstacle layer is 1, whatever the rest (the ground under an
+///   obstacle is often unknown: hidden).
 /// The grid's cells are centred on the DEM vertices: cell (col c, row r) = vertex (r, c), the origin
 /// (lower-left corner of cell (0, 0)) half a cell below and left of vertex (0, 0), data row-major
 /// with rows along +y as OccupancyGrid wants; the orientation is the identity.
@@ -34,11 +36,13 @@ class TraversabilityCostTable {
   int8_t occupancy(float traversability) const;
   const std::array<int8_t, kBins>& table() const { return table_; }
 
-  /// `traversability` and `observations`: CV_32F grid.rows x grid.cols (observations may be empty
-  /// to skip that test). Throws std::invalid_argument on a size or type mismatch.
+  /// `traversability`, `observations` and `obstacle` (1 obstacle, 0 / NaN not): CV_32F grid.rows x
+  /// grid.cols (observations and obstacle may be empty to skip them). Throws
+  /// std::invalid_argument on a size or type mismatch.
   nav_msgs::OccupancyGrid toOccupancyGrid(const GroundGrid& grid, const cv::Mat& traversability,
                                           const cv::Mat& observations, int min_observations,
-                                          const std_msgs::Header& header) const;
+                                          const std_msgs::Header& header,
+                                          const cv::Mat& obstacle = cv::Mat()) const;
 
  private:
   std::array<int8_t, kBins> table_{};
