@@ -199,6 +199,11 @@ int run(const Args& a) {
     tf2_msgs::TFMessage m;
     m.transforms.push_back(t);
     auto header = boost::make_shared<ros::M_string>();
+    // rosbag stores a given connection header as it is: it must describe the type as well
+    (*header)["type"] = ros::message_traits::datatype(m);
+    (*header)["md5sum"] = ros::message_traits::md5sum(m);
+    (*header)["message_definition"] = ros::message_traits::definition(m);
+    (*header)["topic"] = "/tf_static";
     (*header)["latching"] = "1";
     (*header)["callerid"] = "/kitti_to_bag";
     bag.write("/tf_static", t.header.stamp, m, header);
