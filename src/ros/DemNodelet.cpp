@@ -468,7 +468,10 @@ void DemNodelet::frameCb(const sensor_msgs::ImageConstPtr& left, const sensor_ms
   if (camera_frame.empty()) camera_frame = "camera";
 
   std::lock_guard<std::mutex> lock(state_mutex_);
-  if (estimator_ && last_stamp_s_ >= 0.0 && stamp_s < last_stamp_s_ - 1.0) {
+  // A stamp more than 50 ms (half a KITTI frame period) older than the last frame: a bag was
+  // restarted or looped, or the clock jumped. Start a new map; smaller reorderings are rejected by
+  // the estimator (time stamp goes backwards) instead.
+  if (estimator_ && last_stamp_s_ >= 0.0 && stamp_s < last_stamp_s_ - 0.05) {
     resetLocked("time jumped back by " + std::to_string(last_stamp_s_ - stamp_s) + " s (bag restarted?)");
   }
   if (estimator_ && check.calibration_changed) {
