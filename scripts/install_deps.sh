@@ -14,6 +14,11 @@ PKGS=(
   libdynamic-reconfigure-config-init-mutex-dev pluginlib-dev libdiagnostic-updater-dev
   libopencv-dev libeigen3-dev libgdal-dev libgtest-dev libgmock-dev libbenchmark-dev
   python3-numpy python3-opencv python3-yaml
+  # ROS layer: headers of the remaining message packages, the Python side of the rostests, the
+  # live-camera launch file (stereo_image_proc) and the viewer
+  libstd-srvs-dev libdiagnostic-msgs-dev libtf2-msgs-dev libtf2-eigen-dev python3-tf2-ros
+  python3-std-srvs python3-genmsg python3-diagnostic-msgs python3-nav-msgs python3-roslib
+  ros-stereo-image-proc libtbb-dev rviz
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -1,0 +1,181 @@
+// The ROS layer's conversion classes without a ROS graph (plain gtest): HeightGrid <-> DEM layers,
+// traversability -> OccupancyGrid, mesh marker, camera_info / image validation, input monitor,
+// motion covariance.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "stereo_ground_dem/ros/HeightGridConverter.hpp"
+#include "stereo_ground_dem/ros/HeightMeshBuilder.hpp"
+#include "stereo_ground_dem/ros/InputMonitor.hpp"
+#include "stereo_ground_dem/ros/MotionCovariance.hpp"
+#include "stereo_ground_dem/ros/StereoInputValidator.hpp"
+#include "stereo_ground_dem/ros/TraversabilityCostTable.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+const float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+GroundGrid smallGrid() {
+  GroundGrid g;
+  g.resolution_m = 0.5;
+  g.row0 = -3;
+  g.col0 = 4;
+  g.rows = 5;
+  g.cols = 7;
+  return g;
+}
+
+sensor_msgs::CameraInfo info(double fx, double tx, unsigned w = 640, unsigned h = 480) {
+  sensor_msgs::CameraInfo c;
+  c.width = w;
+  c.height = h;
+  c.P = {fx, 0, 320, tx, 0, fx, 240, 0, 0, 0, 1, 0};
+  return c;
+}
+
+sensor_msgs::Image image(const std::string& encoding, unsigned w = 640, unsigned h = 480) {
+  sensor_msgs::Image m;
+  m.encoding = encoding;
+  m.width = w;
+  m.height = h;
+  m.step = w * (encoding == "bgr8" || encoding == "rgb8" ? 3 : encoding == "mono16" ? 2 : 1);
+  m.data.assign(static_cast<size_t>(m.step) * h, 100);
+  return m;
+}
+}  // namespace
+
+TEST(HeightGridConverter, RoundTripAndGridMapIndexing) {
+  const GroundGrid g = smallGrid();
+  cv::Mat e(g.rows, g.cols, CV_32F);
+  for (int r = 0; r < g.rows; ++r)
+    for (int c = 0; c < g.cols; ++c) e.at<float>(r, c) = static_cast<float>(g.xOfCol(c) + 100 * g.yOfRow(r));
+  e.at<float>(1, 2) = kNaN;
+  std_msgs::Header h;
+  h.frame_id = "odom";
+  const HeightGrid m = HeightGridConverter::toMessage(g, {{"elevation", e}}, h);
+  EXPECT_DOUBLE_EQ(m.info.length_x, 3.5);
+  EXPECT_DOUBLE_EQ(m.info.length_y, 2.5);
+  ASSERT_EQ(m.data.size(), 1u);
+  EXPECT_EQ(m.data[0].layout.dim[0].label, "column_index");
+  // grid_map cell (i, j) = data[j * nx + i], centred at x = px + lx/2 - res/2 - i res, same for y
+  const int nx = g.cols;
+  for (int i = 0; i < g.cols; ++i)
+    for (int j = 0; j < g.rows; ++j) {
+      const double x = m.info.pose.position.x + m.info.length_x / 2 - 0.25 - i * 0.5;
+      const double y = m.info.pose.position.y + m.info.length_y / 2 - 0.25 - j * 0.5;
+      const float v = m.data[0].data[static_cast<size_t>(j * nx + i)];
+      if (std::isnan(v)) {
+        EXPECT_NEAR(x, g.xOfCol(2), 1e-9);
+        EXPECT_NEAR(y, g.yOfRow(1), 1e-9);
+      } else {
+        EXPECT_NEAR(v, x + 100 * y, 1e-3);
+      }
+    }
+  GroundGrid g2;
+  std::vector<GridLayer> layers;
+  std::string why;
+  ASSERT_TRUE(HeightGridConverter::fromMessage(m, &g2, &layers, &why)) << why;
+  EXPECT_TRUE(g2.sameLayout(g));
+  ASSERT_EQ(layers.size(), 1u);
+  EXPECT_EQ(cv::norm(layers[0].values, e, cv::NORM_INF, e == e), 0.0);
+}
+
+TEST(TraversabilityCostTable, ValuesAndObstacles) {
+  const TraversabilityCostTable t;
+  EXPECT_EQ(t.occupancy(1.0f), 0);
+  EXPECT_EQ(t.occupancy(0.0f), 100);
+  EXPECT_EQ(t.occupancy(kNaN), -1);
+  EXPECT_NEAR(t.occupancy(0.5f), 50, 1);
+  EXPECT_LE(t.occupancy(0.001f), 100);
+  const GroundGrid g = smallGrid();
+  cv::Mat trav(g.rows, g.cols, CV_32F, cv::Scalar(1.0f)), obs(g.rows, g.cols, CV_32F, cv::Scalar(3.0f));
+  cv::Mat obstacle(g.rows, g.cols, CV_32F, cv::Scalar(0.0f));
+  trav.at<float>(0, 0) = kNaN;
+  obs.at<float>(0, 1) = 0.0f;
+  obstacle.at<float>(2, 3) = 1.0f;
+  obstacle.at<float>(4, 6) = 1.0f;
+  trav.at<float>(4, 6) = kNaN;  // hidden ground under an obstacle: still lethal
+  obs.at<float>(4, 6) = kNaN;
+  const nav_msgs::OccupancyGrid o = t.toOccupancyGrid(g, trav, obs, 1, std_msgs::Header(), obstacle);
+  ASSERT_EQ(o.data.size(), 35u);
+  EXPECT_EQ(o.data[0], -1);
+  EXPECT_EQ(o.data[1], -1);
+  EXPECT_EQ(o.data[2], 0);
+  EXPECT_EQ(o.data[2 * 7 + 3], 100);
+  EXPECT_EQ(o.data[4 * 7 + 6], 100);
+  EXPECT_DOUBLE_EQ(o.info.origin.position.x, g.x0() - 0.25);
+  EXPECT_DOUBLE_EQ(o.info.origin.position.y, g.y0() - 0.25);
+}
+
+TEST(HeightMeshBuilder, OnlyKnownTrianglesNoNaN) {
+  const GroundGrid g = smallGrid();
+  cv::Mat e(g.rows, g.cols, CV_32F, cv::Scalar(0.1f));
+  e.at<float>(2, 2) = kNaN;
+  HeightMeshOptions opt;
+  const visualization_msgs::Marker m = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt);
+  EXPECT_EQ(m.type, visualization_msgs::Marker::TRIANGLE_LIST);
+  EXPECT_EQ(m.points.size(), static_cast<size_t>(3 * (g.triangleCount() - 6)));  // 6 triangles touch (2,2)
+  EXPECT_EQ(m.colors.size(), m.points.size());
+  for (const auto& p : m.points) EXPECT_TRUE(std::isfinite(p.z));
+}
+
+TEST(StereoInputValidator, CameraInfoAndEncodings) {
+  StereoInputValidator v;
+  const auto l = info(500, 0), r = info(500, -500 * 0.54);
+  StereoInputCheck c = v.check(image("mono8"), l, image("mono8"), r);
+  ASSERT_TRUE(c.ok) << c.problem;
+  EXPECT_NEAR(c.rig.baseline_m, 0.54, 1e-12);
+  EXPECT_EQ(c.rig.width, 640);
+  for (const char* e : {"mono16", "bgr8", "rgb8"}) EXPECT_TRUE(v.check(image(e), l, image(e), r).ok) << e;
+  c = v.check(image("bayer_rggb8"), l, image("bayer_rggb8"), r);
+  EXPECT_FALSE(c.ok);
+  EXPECT_NE(c.problem.find("Bayer"), std::string::npos) << c.problem;
+  EXPECT_NE(v.check(image("32FC1"), l, image("32FC1"), r).problem.find("not supported"), std::string::npos);
+  EXPECT_NE(v.check(image("mono8"), l, image("mono8", 639), r).problem.find("639x480"), std::string::npos);
+  EXPECT_FALSE(v.check(image("mono8"), l, image("bgr8"), r).ok);
+  EXPECT_NE(v.check(image("mono8"), l, image("mono8"), info(501, -501 * 0.54)).problem.find("camera_info"),
+            std::string::npos);
+  EXPECT_FALSE(v.check(image("mono8"), l, image("mono8"), info(500, 0)).ok);  // no baseline
+  EXPECT_FALSE(v.check(image("mono8"), sensor_msgs::CameraInfo(), image("mono8"), r).ok);
+}
+
+TEST(InputMonitor, NamesSilentTopicsAndGaps) {
+  InputMonitor m({"L", "LI", "R", "RI"}, false, 0.01);
+  EXPECT_NE(m.check().find("no input"), std::string::npos);
+  m.count(InputMonitor::kLeftImage, 1.0);
+  m.count(InputMonitor::kRightImage, 1.0);
+  m.count(InputMonitor::kRightInfo, 1.0);
+  const std::string s = m.check();
+  EXPECT_NE(s.find("nothing on LI"), std::string::npos) << s;
+  m.countSynchronized();
+  EXPECT_EQ(m.check(), "");
+  EXPECT_EQ(m.frameGap(10.0), "");
+  EXPECT_EQ(m.frameGap(10.1), "");
+  EXPECT_EQ(m.frameGap(10.2), "");
+  EXPECT_EQ(m.frameGap(10.3), "");
+  const std::string gap = m.frameGap(11.0);
+  EXPECT_NE(gap.find("6 frames"), std::string::npos) << gap;
+  EXPECT_EQ(m.frameGap(11.1), "");
+}
+
+TEST(MotionCovariance, InverseFallbackAndFrameChange) {
+  Matrix6d info = Matrix6d::Identity() * 100.0;
+  bool fb = true;
+  const Matrix6d cov = MotionCovariance::fromInformation(info, MotionCovariance::diagonal(1, 1), &fb);
+  EXPECT_FALSE(fb);
+  EXPECT_NEAR(cov(0, 0), 0.01, 1e-12);
+  MotionCovariance::fromInformation(Matrix6d::Zero(), MotionCovariance::diagonal(1, 1), &fb);
+  EXPECT_TRUE(fb);
+  // a pure rotation of the frame permutes the translational variances
+  Matrix6d c = Matrix6d::Zero();
+  c.diagonal() << 1, 2, 3, 4, 5, 6;
+  Eigen::Isometry3d b_T_c = Eigen::Isometry3d::Identity();
+  b_T_c.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;  // optical camera in base_link
+  const Matrix6d cb = MotionCovariance::changeFrame(c, b_T_c);
+  EXPECT_NEAR(cb(0, 0), 3, 1e-12);  // base x = camera z
+  EXPECT_NEAR(cb(1, 1), 1, 1e-12);
+  EXPECT_NEAR(cb(2, 2), 2, 1e-12);
+}
