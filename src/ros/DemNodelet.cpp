@@ -785,7 +785,8 @@ bool DemNodelet::saveSrv(SaveMap::Request& req, SaveMap::Response& res) {
     dem.elevation = d.find("elevation")->clone();
     dem.variance = d.find("variance")->clone();
     dem.traversability = d.find("traversability")->clone();
-    if (const cv::Mat* o = d.find("obstacle_height")) dem.obstacles = o->clone();
+    if (const cv::Mat* o = d.find("obstacle")) dem.obstacles = o->clone();
+    if (const cv::Mat* o = d.find("obstacle_height")) dem.obstacle_height = o->clone();
     dem.ground_T_camera0 = estimator_->groundTCamera0();
     dem.trajectory_xy = trajectory_xy_;
     dem.extra = {{"mode", "ROS node " + getName()}, {"frame_id", odom_frame_}};

@@ -67,6 +67,9 @@ int main(int argc, char** argv) {
     }
     ms += r.time_ms;
     if ((k + 1) % 100 == 0) {
+      // Give freed heap pages back first, so the resident size shows what is held, not what the
+      // allocator keeps cached from the last frame's temporaries.
+      malloc_trim(0);
       std::printf("%d,%.1f,%zu,%.2f,%d,%d,%.1f\n", k + 1, residentMb(), est.map().tileCount(),
                   est.map().memoryBytes() / 1048576.0, est.map().evictedTiles(), failures, ms / (k + 1));
       std::fflush(stdout);
