@@ -127,8 +127,8 @@ StereoOutcome evaluateStereo(const Pair& c, const StereoResult& r) {
 
 }  // namespace
 
-// Measured (this code): ground >= 1 m from footprints, 5-30 m, median 0.32 cm, p95 1.31 cm (the
-// same scene without obstacles: 0.36 / 1.47 cm); footprints flagged 76 of 76; no raised vertex.
+// Measured (this code): ground >= 1 m from footprints, 5-30 m, median 0.33 cm, p95 1.23 cm (the
+// same scene without obstacles: 0.35 / 1.52 cm); footprints flagged 76 of 76; no raised vertex.
 TEST(Obstacles, StereoModeGroundBesideParkedCarWallAndPoles) {
   const Pair with = renderPair(sim::SceneKind::kFlatRoad, true);
   const Pair without = renderPair(sim::SceneKind::kFlatRoad, false);
@@ -185,9 +185,9 @@ std::vector<double> absolute(std::vector<double> e) {
 
 }  // namespace
 
-// Measured (this code, deterministic): 12 cm curb, road side median 0.40 cm (p95 1.3), sidewalk
-// 0.32 cm (p95 1.6); 0.4 m step, low side median 1.74 cm (p95 12: the vertices next to the face),
-// high side 1.13 cm (p95 3.1). The bound is 2 cm.
+// Measured (this code, deterministic): 12 cm curb, road side median 0.40 cm (p95 1.0), sidewalk
+// 0.38 cm (p95 2.3); 0.4 m step, low side median 0.94 cm (p95 3.7), high side 1.10 cm (p95 2.8).
+// The bound is 2 cm.
 TEST(Obstacles, CurbAndStepStayStepsBesideObstacles) {
   {
     const Pair c = renderPair(sim::SceneKind::kBumpAndCurb, true);
@@ -237,7 +237,7 @@ bool groundVisible(const sim::SyntheticScene& scene, const StereoRig& rig, const
 }
 
 // Measured (this code): 177 path cells known, 114 seen in the last two frames, 0 ghosts; static
-// footprints 50 of 50 marked; ground median 0.31 cm, p95 2.39 cm.
+// footprints 50 of 50 marked; ground median 0.35 cm, p95 2.87 cm.
 // A box crossing the road and a car driving ahead: after they have passed, no cell of their path
 // keeps a raised height or an obstacle mark; the parked car, the wall and the poles stay marked.
 TEST(Obstacles, MovingObjectsLeaveNoGhosts) {

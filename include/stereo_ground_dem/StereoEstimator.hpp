@@ -33,7 +33,7 @@ struct StereoEstimatorOptions {
   int plane_fit_coarsest_level = 3;     ///< pyramid levels used by the plane fit, coarse to fine
   int plane_fit_finest_level = 1;
   /// Update constraint mu_v = update_weight * (1 + (depth_v / update_reference_depth_m)^2) [1/m^2].
-  double update_weight = 1e3;
+  double update_weight = 100.0;
   double update_reference_depth_m = 10.0;
   /// Vertices whose triangles hold more obstacle pixels than this times their ground pixels are
   /// hidden by an obstacle: unknown in the DEM, obstacle in the obstacle layer.

@@ -41,7 +41,7 @@ struct SurfaceAlignerOptions {
   double smoothness_weight = 200.0;        ///< lambda_s [m^2]
   /// Cauchy scale of the second differences [m]; <= 0: quadratic smoothness. Bends much larger
   /// than this (a curb, a step) cost little more than this, so the surface can break there.
-  double smoothness_robust_scale_m = 0.03;
+  double smoothness_robust_scale_m = 0.1;
   double min_depth_m = 3.0;                ///< triangles need all vertices at camera depth >= this [m]
   double max_depth_m = 40.0;               ///< ... and <= this [m]
   double max_lateral_m = 25.0;             ///< ... and |camera x| <= this [m]
