@@ -8,44 +8,16 @@
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
 #include "stereo_ground_dem/sim/StereoRenderer.hpp"
+#include "synthetic_pair.hpp"
 
 using namespace stereo_ground_dem;
 
 namespace {
 
-struct Errors {
-  double median = 0.0, p95 = 0.0;
-  size_t count = 0;
-};
-
-Errors quantiles(std::vector<double> e) {
-  Errors out;
-  out.count = e.size();
-  if (e.empty()) return out;
-  std::sort(e.begin(), e.end());
-  out.median = e[e.size() / 2];
-  out.p95 = e[std::min(e.size() - 1, e.size() * 95 / 100)];
-  return out;
-}
-
-struct Case {
-  sim::SyntheticScene scene;
-  StereoRig rig;
-  Eigen::Isometry3d ground_T_left;
-  sim::RenderedPair pair;
-};
-
-/// A KITTI-like pair; left = 1.2 * right + 10 (gain 20 % and bias 10 levels apart).
-Case render(sim::SceneKind kind) {
-  sim::SceneOptions so = sim::SceneOptions::standard(kind, 7);
-  Case c{sim::SyntheticScene(so), sim::StereoRenderer::kittiLikeRig(1.0), {}, {}};
-  sim::RenderOptions ro;
-  ro.noise_std_grey = 1.0;
-  const sim::StereoRenderer renderer(c.scene, c.rig, ro);
-  c.ground_T_left = sim::SequenceGenerator::cameraPose(c.scene, sim::SequenceOptions(), 0.0, 0.0, 0.0);
-  c.pair = renderer.renderPair(c.ground_T_left, {1.2, 10.0}, {1.0, 0.0}, 0.0, 3);
-  return c;
-}
+using test::quantiles;
+using Errors = test::Quantiles;
+using Case = test::SyntheticPair;
+Case render(sim::SceneKind kind) { return test::renderPair(kind); }
 
 /// Absolute height errors [m] of the observed vertices at camera depth [near, far), excluding
 /// obstacle footprints, in the true ground frame.

@@ -45,6 +45,8 @@ struct StereoEstimatorOptions {
   SurfaceAlignerOptions aligner;        ///< its depth range is overridden by the fields above
   ObstacleDetectorOptions obstacles;    ///< occlusion reasoning; camera_height_m follows nominal_height_m
 
+  /// `aligner` with the working range (min_range_m, max_range_m, max_lateral_m) filled in.
+  SurfaceAlignerOptions alignerOptions() const;
   bool isValid(std::string* why) const;
 };
 
@@ -83,6 +85,11 @@ class StereoEstimator {
 
   /// The disparity [px] the surface implies at every left pixel (0 where no surface), level 0.
   cv::Mat impliedDisparity(const StereoResult& result, const ImagePyramid& left) const;
+
+  /// Inverse depth [1/m] of the surface (`heights` on `grid`, seen from camera_T_ground) at every
+  /// pixel of `reference`'s pyramid level `level` (0 where no triangle in the working range).
+  cv::Mat surfaceInverseDepth(const ImagePyramid& reference, const GroundGrid& grid, const Eigen::VectorXd& heights,
+                              const Eigen::Isometry3d& camera_T_ground, int level) const;
 
   /// camera_T_ground of a camera at height h above the origin, looking along +x, pitched down.
   static Eigen::Isometry3d nominalCameraPose(double height_m, double pitch_down_rad, double roll_rad);

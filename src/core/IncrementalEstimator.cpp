@@ -122,21 +122,7 @@ cv::Mat IncrementalEstimator::surfaceDisparity(const Eigen::Isometry3d& ground_T
   const GroundGrid window = viewWindow(camera_T_ground);
   Eigen::VectorXd heights, info;
   map_.sample(window, &heights, &info);
-  const StereoEstimatorOptions& so = options_.stereo;
-  SurfaceAlignerOptions ao = so.aligner;
-  ao.min_depth_m = so.min_range_m;
-  ao.max_depth_m = so.max_range_m;
-  ao.max_lateral_m = so.max_lateral_m;
-  const SurfaceAligner aligner(ao);
-  AlignmentProblem prob;
-  prob.reference = prev_left_.get();
-  prob.rig = &rig_;
-  prob.grid = &window;
-  prob.level = 0;
-  SurfaceState state;
-  state.camera_T_ground = camera_T_ground;
-  state.heights = heights;
-  return aligner.renderInverseDepth(prob, state) * rig_.disparityTimesDepth();
+  return stereo_.surfaceInverseDepth(*prev_left_, window, heights, camera_T_ground, 0) * rig_.disparityTimesDepth();
 }
 
 GroundGrid IncrementalEstimator::viewWindow(const Eigen::Isometry3d& camera_T_ground) const {
@@ -226,10 +212,7 @@ Eigen::Isometry3d IncrementalEstimator::searchForwardMotion(const ImagePyramid& 
                                                             const Eigen::VectorXd& heights,
                                                             const Eigen::Isometry3d& predicted, double dt) const {
   const StereoEstimatorOptions& so = options_.stereo;
-  SurfaceAlignerOptions ao = so.aligner;
-  ao.min_depth_m = so.min_range_m;
-  ao.max_depth_m = so.max_range_m;
-  ao.max_lateral_m = so.max_lateral_m;
+  SurfaceAlignerOptions ao = so.alignerOptions();
   ao.max_iterations = 0;  // cost only
   ao.estimate_motion = false;
   const SurfaceAligner aligner(ao);
@@ -379,10 +362,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   AlignerTarget prev_r = prev_l;
   prev_r.pyramid = prev_right_.get();
   prev_r.target_T_ground = rigTransform(rig_) * prev_c_T_g;
-  SurfaceAlignerOptions ao = so.aligner;
-  ao.min_depth_m = so.min_range_m;
-  ao.max_depth_m = so.max_range_m;
-  ao.max_lateral_m = so.max_lateral_m;
+  SurfaceAlignerOptions ao = so.alignerOptions();
   ao.estimate_motion = true;
 
   // ---- 1. motion only, at a coarse level, against the known surface: a wide basin for sudden

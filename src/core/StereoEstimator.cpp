@@ -7,6 +7,14 @@
 
 namespace stereo_ground_dem {
 
+SurfaceAlignerOptions StereoEstimatorOptions::alignerOptions() const {
+  SurfaceAlignerOptions ao = aligner;
+  ao.min_depth_m = min_range_m;
+  ao.max_depth_m = max_range_m;
+  ao.max_lateral_m = max_lateral_m;
+  return ao;
+}
+
 bool StereoEstimatorOptions::isValid(std::string* why) const {
   auto bad = [why](const std::string& m) {
     if (why) *why = m;
@@ -249,10 +257,7 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   state.heights = Eigen::VectorXd::Zero(res.grid.vertexCount());
   state.photometric = {res.photometric};
 
-  SurfaceAlignerOptions ao = o.aligner;
-  ao.min_depth_m = o.min_range_m;
-  ao.max_depth_m = o.max_range_m;
-  ao.max_lateral_m = o.max_lateral_m;
+  SurfaceAlignerOptions ao = o.alignerOptions();
   ao.estimate_motion = false;
   ao.max_iterations = o.iterations_per_level;
   const SurfaceAligner aligner(ao);
@@ -312,20 +317,7 @@ ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const Im
   oo.camera_height_m = std::max(options_.nominal_height_m, oo.min_obstacle_height_m + 0.1);
   oo.level = std::min(oo.level, left.levels() - 1);
   const ObstacleDetector detector(oo);
-  SurfaceAlignerOptions ao = options_.aligner;
-  ao.min_depth_m = options_.min_range_m;
-  ao.max_depth_m = options_.max_range_m;
-  ao.max_lateral_m = options_.max_lateral_m;
-  const SurfaceAligner aligner(ao);
-  AlignmentProblem prob;
-  prob.reference = &left;
-  prob.rig = &rig_;
-  prob.grid = &grid;
-  prob.level = oo.level;
-  SurfaceState state;
-  state.camera_T_ground = camera_T_ground;
-  state.heights = heights;
-  cv::Mat rho = aligner.renderInverseDepth(prob, state);
+  cv::Mat rho = surfaceInverseDepth(left, grid, heights, camera_T_ground, oo.level);
   // Beyond the mesh (farther than max_range_m or wider than max_lateral_m) the ground hypothesis
   // is the level plane z = 0 of the ground frame: an obstacle near the mesh's far edge rises
   // into image rows whose ground lies beyond it, and must be tested there too.
@@ -346,23 +338,24 @@ ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const Im
   return detector.detect(left, right, rig_, photometric, rho);
 }
 
+cv::Mat StereoEstimator::surfaceInverseDepth(const ImagePyramid& reference, const GroundGrid& grid,
+                                             const Eigen::VectorXd& heights, const Eigen::Isometry3d& camera_T_ground,
+                                             int level) const {
+  AlignmentProblem prob;
+  prob.reference = &reference;
+  prob.rig = &rig_;
+  prob.grid = &grid;
+  prob.level = level;
+  SurfaceState state;
+  state.camera_T_ground = camera_T_ground;
+  state.heights = heights;
+  return SurfaceAligner(options_.alignerOptions()).renderInverseDepth(prob, state);
+}
+
 cv::Mat StereoEstimator::impliedDisparity(const StereoResult& result, const ImagePyramid& left) const {
   if (!result.ok) return cv::Mat::zeros(left.height(), left.width(), CV_32F);
-  SurfaceAlignerOptions ao = options_.aligner;
-  ao.min_depth_m = options_.min_range_m;
-  ao.max_depth_m = options_.max_range_m;
-  ao.max_lateral_m = options_.max_lateral_m;
-  const SurfaceAligner aligner(ao);
-  AlignmentProblem prob;
-  prob.reference = &left;
-  prob.rig = &rig_;
-  prob.grid = &result.grid;
-  prob.level = 0;
-  SurfaceState state;
-  state.camera_T_ground = result.ground_T_camera.inverse();
-  state.heights = result.heights;
-  const cv::Mat rho = aligner.renderInverseDepth(prob, state);
-  return rho * rig_.disparityTimesDepth();
+  return surfaceInverseDepth(left, result.grid, result.heights, result.ground_T_camera.inverse(), 0) *
+         rig_.disparityTimesDepth();
 }
 
 }  // namespace stereo_ground_dem

@@ -6,7 +6,6 @@ Frames 0-2 good; 3 right image one column narrower; 4 bayer encoding; 5-6 no lef
 synchronized); 7-8 dropped (a gap); 9-12 good."""
 import os
 import sys
-import time
 import unittest
 
 import numpy as np
@@ -34,12 +33,7 @@ class BadInputTest(unittest.TestCase):
                            ['--bad-size', '3', '--bad-encoding', '4', '--drop-info', '5,6', '--drop', '7,8'])
         cls.logs = []
         cls.log_sub = rospy.Subscriber('/rosout', Log, lambda m: cls.logs.append(m), queue_size=500)
-        cls.rec = sup.Recorder(NS)
-        cls.player = sup.BagPlayer(bag)
-        assert cls.rec.wait_connected(), 'the node never connected to the test subscribers'
-        assert cls.player.wait_subscribed(), 'the node never subscribed to the cameras'
-        cls.player.play(cls.period)
-        time.sleep(1.0)
+        cls.rec, cls.player = sup.play_bag(NS, bag, cls.period)
 
     def test_01_no_dem_from_bad_frames(self):
         s0 = self.player.published[0][1]

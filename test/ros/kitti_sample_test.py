@@ -7,7 +7,6 @@ odom -> base_link, the latency from image stamp to DEM, and the services (get_su
 against the offline runner's files, reset)."""
 import os
 import sys
-import time
 import unittest
 
 import numpy as np
@@ -36,12 +35,7 @@ class KittiSampleTest(unittest.TestCase):
         bag = sup.make_bag(cls.sequence, os.path.join(cls.tmp, 'kitti.bag'))
         cls.tf_buffer = tf2_ros.Buffer(cache_time=rospy.Duration(600))
         cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
-        cls.rec = sup.Recorder(NS)
-        cls.player = sup.BagPlayer(bag)
-        assert cls.rec.wait_connected(), 'the node never connected to the test subscribers'
-        assert cls.player.wait_subscribed(), 'the node never subscribed to the cameras (lazy?)'
-        cls.player.play(cls.period)
-        time.sleep(1.0)
+        cls.rec, cls.player = sup.play_bag(NS, bag, cls.period)
 
     def test_01_one_dem_per_frame(self):
         frames = len(self.player.published)

@@ -199,6 +199,18 @@ class BagPlayer(object):
         time.sleep(period_s)
 
 
+def play_bag(ns, bag_path, period_s):
+    """Subscribes to the node's outputs under `ns`, waits until the node listens to the cameras,
+    plays the bag (BagPlayer.play) and returns (Recorder, BagPlayer) with everything received."""
+    rec = Recorder(ns)
+    player = BagPlayer(bag_path)
+    assert rec.wait_connected(), 'the node never connected to the test subscribers'
+    assert player.wait_subscribed(), 'the node never subscribed to the cameras (lazy?)'
+    player.play(period_s)
+    time.sleep(1.0)
+    return rec, player
+
+
 def finite_known(a):
     """No infinities; returns the finite values."""
     if np.isinf(a).any():

@@ -7,7 +7,6 @@ is at the scene origin, heading +x, 1.65 m up); poses.txt gives the true camera 
 obstacles (a parked car 4.2 x 1.8 m centred at x = 22, y = -2.6)."""
 import os
 import sys
-import time
 import unittest
 
 import numpy as np
@@ -33,12 +32,7 @@ class SyntheticTest(unittest.TestCase):
         with open(os.path.join(cls.sequence, 'scene.yaml')) as f:
             # OpenCV FileStorage YAML: drop its "%YAML:1.0" directive, which PyYAML rejects
             cls.scene = yaml.safe_load(''.join(l for l in f if not l.startswith('%YAML')))
-        cls.rec = sup.Recorder(NS)
-        cls.player = sup.BagPlayer(bag)
-        assert cls.rec.wait_connected(), 'the node never connected to the test subscribers'
-        assert cls.player.wait_subscribed(), 'the node never subscribed to the cameras'
-        cls.player.play(cls.period)
-        time.sleep(1.0)
+        cls.rec, cls.player = sup.play_bag(NS, bag, cls.period)
 
     def test_01_one_dem_per_frame(self):
         self.assertEqual(len(self.player.published), FRAMES)
