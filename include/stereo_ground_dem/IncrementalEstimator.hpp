@@ -42,6 +42,18 @@ struct IncrementalEstimatorOptions {
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
   bool temporal_checkerboard = false;     ///< temporal pairs use every other pixel
+  /// Also align the current left image with the previous RIGHT image (the paper's third pair).
+  /// Off by default: that pair ties the motion to the stereo calibration, so a real rig's small
+  /// rectification errors become a per-frame attitude bias (docs/method.md, section 6).
+  bool use_cross_temporal_pair = false;
+  /// Temporal pairs skip samples that land on the previous frame's obstacle pixels: ground
+  /// uncovered by a moving car, or seen past a parked car's edge, is not compared with the car.
+  bool exclude_previous_obstacles = false;
+  /// The rectification's vertical misalignment (stereo.model_rectification) is measured on the
+  /// first `rectification_startup_pairs` frames, then every `rectification_check_period_frames`
+  /// frames (0: only on the first ones); about 5 ms each.
+  int rectification_startup_pairs = 5;
+  int rectification_check_period_frames = 10;
   double max_residual_ratio = 3.0;        ///< median residual above ratio * the usual level ...
   double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
   int min_samples = 500;                  ///< fewer pixel samples in the final level: failure
@@ -90,6 +102,8 @@ struct FrameResult {
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   int obstacle_pixels = 0;               ///< at the obstacle test level
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
+  /// The rectification error modelled after this frame (zero when negligible or not modelled).
+  VerticalMisalignment rectification;
 };
 
 class IncrementalEstimator {
@@ -133,6 +147,8 @@ class IncrementalEstimator {
                             std::unique_ptr<ImagePyramid>& pl, std::unique_ptr<ImagePyramid>& pr);
   void advance(const Eigen::Isometry3d& ground_T_camera, double stamp_s, std::unique_ptr<ImagePyramid>& pl,
                std::unique_ptr<ImagePyramid>& pr, const std::vector<PhotometricParams>& photometric);
+  bool rectificationDue(int frame_index) const;
+  void addPairCheck(const StereoPairCheck& check);
   Eigen::Isometry3d searchForwardMotion(const ImagePyramid& left, const GroundGrid& window,
                                         const Eigen::VectorXd& heights, const Eigen::Isometry3d& predicted,
                                         double dt) const;
@@ -140,6 +156,7 @@ class IncrementalEstimator {
   StereoRig rig_;
   IncrementalEstimatorOptions options_;
   StereoEstimator stereo_;
+  RectificationMonitor rectification_;
   ElevationMap map_;
   bool initialized_ = false;
   Eigen::Isometry3d ground_T_camera0_ = Eigen::Isometry3d::Identity();
@@ -149,6 +166,7 @@ class IncrementalEstimator {
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
   double last_good_stamp_ = 0.0;
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
+  std::vector<cv::Mat> prev_obstacles_;  ///< obstacle pixels of the previous left image, per level
   cv::Mat last_left_level0_;   ///< for the frozen-frame test
   std::array<PhotometricParams, 3> last_photometric_;
   int frame_counter_ = 0;

@@ -14,6 +14,7 @@
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/ObstacleDetector.hpp"
 #include "stereo_ground_dem/PhotometricParams.hpp"
+#include "stereo_ground_dem/RectificationMonitor.hpp"
 #include "stereo_ground_dem/StereoRig.hpp"
 #include "stereo_ground_dem/SurfaceAligner.hpp"
 
@@ -44,6 +45,15 @@ struct StereoEstimatorOptions {
   int iterations_per_level = 8;
   SurfaceAlignerOptions aligner;        ///< its depth range is overridden by the fields above
   ObstacleDetectorOptions obstacles;    ///< occlusion reasoning; camera_height_m follows nominal_height_m
+  /// Model the residual vertical misalignment of the rectification (VerticalMisalignment), measured
+  /// by sparse matches (RectificationMonitor). Either way, a pair whose matches show swapped
+  /// cameras, no common content or no rectification at all is refused.
+  bool model_rectification = true;
+  /// A measured misalignment smaller than this everywhere in the image is not modelled [px]: the
+  /// noise floor of the sparse-match fit (on rendered pairs with a perfect rig it reaches 0.15 px,
+  /// e.g. c3 = -0.15, c4 = 0.13 px on the bump scene; both KITTI rigs show 1.4 px).
+  double min_rectification_correction_px = 0.2;
+  RectificationMonitorOptions rectification;
 
   /// `aligner` with the working range (min_range_m, max_range_m, max_lateral_m) filled in.
   SurfaceAlignerOptions alignerOptions() const;
@@ -67,6 +77,8 @@ struct StereoResult {
   Eigen::VectorXd obstacle, obstacle_height;
   ObstacleEvidence obstacle_evidence;
   Eigen::VectorXi excluded_pixels;      ///< per vertex, obstacle pixels of its triangles at level 0
+  StereoPairCheck pair_check;           ///< sparse matches of this pair (sanity, misalignment)
+  VerticalMisalignment rectification;   ///< the misalignment modelled for this estimate
 };
 
 class StereoEstimator {
@@ -117,14 +129,39 @@ class StereoEstimator {
                                const Eigen::VectorXd& heights, const Eigen::Isometry3d& camera_T_ground,
                                const PhotometricParams& photometric) const;
 
+  /// The stereo partner as an aligner target: the right camera at (baseline, offset y, 0) and the
+  /// rectification's pixel correction (see VerticalMisalignment).
+  AlignerTarget stereoTarget(const ImagePyramid& right, const VerticalMisalignment& m) const;
+  /// right_T_left including the vertical offset that `m` models.
+  Eigen::Isometry3d rightTLeft(const VerticalMisalignment& m) const;
+  /// `m`, or zero when it is below min_rectification_correction_px or modelling is off.
+  VerticalMisalignment modelled(const VerticalMisalignment& m) const;
+
+  /// Sparse-match check of a pair at the monitor's level (see RectificationMonitor).
+  StereoPairCheck checkPair(const ImagePyramid& left, const ImagePyramid& right) const;
+
+
+  /// The misalignment to model from now on (the incremental mode's running estimate); until it is
+  /// set, estimate() models the one its own pair's sparse matches show.
+  void setRectification(const VerticalMisalignment& m) {
+    rectification_ = m;
+    rectification_set_ = true;
+  }
+  void clearRectification() { rectification_set_ = false; }
+  const VerticalMisalignment& rectification() const { return rectification_; }
+
   /// Builds the pyramid the estimators use for an input image.
   ImagePyramid makePyramid(const cv::Mat& image,
                            ImagePyramid::ColorOrder order = ImagePyramid::ColorOrder::kBgr) const;
   int pyramidLevels() const;
 
  private:
+  StereoResult estimateWith(const ImagePyramid& left, const ImagePyramid& right, const VerticalMisalignment& m) const;
+
   StereoRig rig_;
   StereoEstimatorOptions options_;
+  VerticalMisalignment rectification_;
+  bool rectification_set_ = false;
 };
 
 }  // namespace stereo_ground_dem

@@ -30,6 +30,7 @@
 #include "stereo_ground_dem/PhotometricParams.hpp"
 #include "stereo_ground_dem/Se3.hpp"
 #include "stereo_ground_dem/StereoRig.hpp"
+#include "stereo_ground_dem/VerticalMisalignment.hpp"
 
 namespace stereo_ground_dem {
 
@@ -80,6 +81,14 @@ struct AlignerTarget {
   /// Use every other reference pixel (a checkerboard) for this pair: half the cost, for pairs
   /// whose information is mostly about the six motion parameters.
   bool checkerboard = false;
+  /// The target's pixels sit this much lower than the geometry says: the row shift polynomial of
+  /// VerticalMisalignment (coefficients c0..c5 [px at level 0] of (1, x, y, xy, x^2, y^2) in the
+  /// target's normalized coordinates), a real rig's residual rectification error. All zero: none.
+  std::array<double, VerticalMisalignment::kTerms> row_shift_px{};
+  /// Optional per pyramid level: pixels of THIS target image not to sample (CV_8U, nonzero =
+  /// excluded), e.g. the previous frame's obstacle pixels for a temporal pair: ground seen now
+  /// where a car stood (or moved away from) is not compared with the car.
+  const std::vector<cv::Mat>* excluded = nullptr;
 };
 
 /// What is estimated; updated in place by align().

@@ -48,6 +48,9 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   }
   if (min_samples < 0) return bad("min_samples must be >= 0");
   if (!(max_init_std_m > 0.0)) return bad("max_init_std_m must be > 0");
+  if (rectification_startup_pairs < 0 || rectification_check_period_frames < 0) {
+    return bad("rectification_startup_pairs and rectification_check_period_frames must be >= 0");
+  }
   if (!(motion_search_step_m > 0.0) || !(motion_search_max_m >= motion_search_min_m)) {
     return bad("need motion_search_step_m > 0 and motion_search_max_m >= motion_search_min_m");
   }
@@ -65,21 +68,36 @@ const IncrementalEstimatorOptions& validated(const IncrementalEstimatorOptions& 
   if (!o.isValid(&why)) throw std::invalid_argument("IncrementalEstimatorOptions: " + why);
   return o;
 }
-Eigen::Isometry3d rigTransform(const StereoRig& rig) {
-  return Eigen::Translation3d(-rig.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
-}
 }  // namespace
 
 IncrementalEstimator::IncrementalEstimator(const StereoRig& rig, const IncrementalEstimatorOptions& options)
-    : rig_(rig), options_(validated(options)), stereo_(rig, options.stereo), map_(mapOptions(options)) {}
+    : rig_(rig), options_(validated(options)), stereo_(rig, options.stereo), rectification_(options.stereo.rectification), map_(mapOptions(options)) {}
+
+bool IncrementalEstimator::rectificationDue(int frame_index) const {
+  // The misalignment is a property of the rig: measured on the first frames, then now and then
+  // (it may drift with temperature), not on every frame.
+  const int every = options_.rectification_check_period_frames;
+  if (!options_.stereo.model_rectification) return false;
+  if (rectification_.pairs() < options_.rectification_startup_pairs) return true;
+  return every > 0 && frame_index % every == 0;
+}
+
+void IncrementalEstimator::addPairCheck(const StereoPairCheck& check) {
+  if (!check.ok()) return;
+  rectification_.accumulate(check);
+  stereo_.setRectification(stereo_.modelled(rectification_.estimate()));
+}
 
 void IncrementalEstimator::reset() {
+  rectification_.reset();
+  stereo_.clearRectification();
   map_.clear();
   initialized_ = false;
   velocity_.setZero();
   velocity_known_ = false;
   prev_left_.reset();
   prev_right_.reset();
+  prev_obstacles_.clear();
   last_left_level0_.release();
   consecutive_failures_ = 0;
 }
@@ -262,6 +280,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   res.frame_index = frame_counter_++;
   res.stamp_s = stamp_s;
   auto finish = [&](FrameResult& r) -> FrameResult {
+    r.rectification = stereo_.rectification();
     r.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     r.camera0_T_camera = ground_T_camera0_.inverse() * r.ground_T_camera;
     return r;
@@ -307,6 +326,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
       ++failures_total_;
       return finish(res);
     }
+    addPairCheck(sr.pair_check);
     ground_T_camera0_ = sr.ground_T_camera;
     ground_T_camera_ = sr.ground_T_camera;
     std::vector<uint8_t> update(static_cast<size_t>(sr.grid.vertexCount()));
@@ -319,6 +339,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     velocity_.setZero();
     velocity_known_ = false;
     residual_level_ = sr.median_abs_residual_grey;
+    prev_obstacles_ = sr.obstacles.excluded;
     advance(sr.ground_T_camera, stamp_s, pl, pr, {sr.photometric});
     res.status = FrameStatus::kInitialized;
     res.ground_T_camera = sr.ground_T_camera;
@@ -332,6 +353,15 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   if (consecutive_failures_ >= options_.reinit_after_failures) return finish(recoverFrame(*pl, *pr, stamp_s, &res, pl, pr));
   return finish(trackFrame(stamp_s, &res, pl, pr));
 }
+
+namespace {
+/// The photometric slots (0 stereo, 1 previous left, 2 previous right) of the pairs in use.
+std::vector<int> pairSlots(bool temporal, bool cross) {
+  if (!temporal) return {0};
+  if (!cross) return {0, 1};
+  return {0, 1, 2};
+}
+}  // namespace
 
 FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, std::unique_ptr<ImagePyramid>& pl,
                                               std::unique_ptr<ImagePyramid>& pr) {
@@ -350,18 +380,18 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   }
 
   const Eigen::Isometry3d prev_c_T_g = ground_T_camera_.inverse();
-  AlignerTarget stereo_t;
-  stereo_t.pyramid = pr.get();
-  stereo_t.rig_fixed = true;
-  stereo_t.target_T_reference = rigTransform(rig_);
+  const AlignerTarget stereo_t = stereo_.stereoTarget(*pr, stereo_.rectification());
   AlignerTarget prev_l;
   prev_l.pyramid = prev_left_.get();
   prev_l.rig_fixed = false;
   prev_l.target_T_ground = prev_c_T_g;
   prev_l.checkerboard = options_.temporal_checkerboard;
+  if (options_.exclude_previous_obstacles && !prev_obstacles_.empty()) prev_l.excluded = &prev_obstacles_;
   AlignerTarget prev_r = prev_l;
   prev_r.pyramid = prev_right_.get();
-  prev_r.target_T_ground = rigTransform(rig_) * prev_c_T_g;
+  prev_r.target_T_ground = stereo_.rightTLeft(stereo_.rectification()) * prev_c_T_g;
+  prev_r.row_shift_px = stereo_t.row_shift_px;
+  prev_r.excluded = nullptr;  // the previous obstacle mask is in the previous LEFT image
   SurfaceAlignerOptions ao = so.alignerOptions();
   ao.estimate_motion = true;
 
@@ -380,7 +410,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     prob.rig = &rig_;
     prob.grid = &window;
     prob.level = std::min(options_.prealign_level, pl->levels() - 1);
-    prob.targets = {stereo_t, prev_l, prev_r};
+    const std::vector<int> slots = pairSlots(true, options_.use_cross_temporal_pair);
+    const AlignerTarget all_targets[3] = {stereo_t, prev_l, prev_r};
+    for (int sl : slots) prob.targets.push_back(all_targets[sl]);
     prob.estimate_heights = false;
     Vector6d no_turn = velocity_ * dt;
     no_turn.tail<3>().setZero();
@@ -392,8 +424,10 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       SurfaceState s;
       s.camera_T_ground = starts[k];
       s.heights = heights;
-      s.photometric = {statsPhotometric(*pl, *pr, starts[k]), statsPhotometric(*pl, *prev_left_, starts[k]),
-                       statsPhotometric(*pl, *prev_right_, starts[k])};
+      const std::vector<PhotometricParams> photo3 = {statsPhotometric(*pl, *pr, starts[k]),
+                                                     statsPhotometric(*pl, *prev_left_, starts[k]),
+                                                     statsPhotometric(*pl, *prev_right_, starts[k])};
+      for (int sl : slots) s.photometric.push_back(photo3[static_cast<size_t>(sl)]);
       const AlignmentReport rep = aligner.align(prob, s);
       res.reports.push_back(rep);
       const int samples = rep.valid_pixels + rep.outside_pixels;
@@ -402,7 +436,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
         best = cost;
         best_residual = rep.median_abs_residual_grey;
         state.camera_T_ground = s.camera_T_ground;
-        state.photometric = s.photometric;
+        state.photometric = photo3;
+        for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
       }
     }
     if (!std::isfinite(best)) {
@@ -449,11 +484,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     const bool temporal = l >= options_.temporal_finest_level;
     // The photometric state is per target; keep the three slots and pass the used subset.
     SurfaceState level_state = state;
-    if (temporal) {
-      prob.targets = {stereo_t, prev_l, prev_r};
-    } else {
-      prob.targets = {stereo_t};
-      level_state.photometric = {state.photometric[0]};
+    const std::vector<int> slots = pairSlots(temporal, options_.use_cross_temporal_pair);
+    const AlignerTarget all_targets[3] = {stereo_t, prev_l, prev_r};
+    prob.targets.clear();
+    level_state.photometric.clear();
+    for (int sl : slots) {
+      prob.targets.push_back(all_targets[sl]);
+      level_state.photometric.push_back(state.photometric[static_cast<size_t>(sl)]);
     }
     Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
     stereo_.levelBasis(window, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
@@ -465,11 +502,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     res.reports.push_back(last);
     state.camera_T_ground = level_state.camera_T_ground;
     state.heights = level_state.heights;
-    state.photometric[0] = level_state.photometric[0];
-    if (temporal) {
-      state.photometric[1] = level_state.photometric[1];
-      state.photometric[2] = level_state.photometric[2];
-    }
+    for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = level_state.photometric[i];
     if (last.degenerate) break;
   }
   std::copy_n(state.photometric.begin(), 3, res.photometric.begin());
@@ -535,10 +568,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
 
   res.obstacle_vertices = static_cast<int>(std::count(oe.hit.begin(), oe.hit.end(), 1));
   res.fused_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
+  if (rectificationDue(res.frame_index)) addPairCheck(stereo_.checkPair(*pl, *pr));
   velocity_ = step / dt;
   velocity_known_ = true;
   residual_level_ = residual_level_ > 0.0 ? 0.8 * residual_level_ + 0.2 * last.median_abs_residual_grey
                                           : last.median_abs_residual_grey;
+  prev_obstacles_ = obstacles.excluded;
   advance(state.camera_T_ground.inverse(), stamp_s, pl, pr, state.photometric);
   res.status = FrameStatus::kTracked;
   res.ground_T_camera = ground_T_camera_;
@@ -629,6 +664,7 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   velocity_.setZero();
   velocity_known_ = false;
   residual_level_ = sr.median_abs_residual_grey;
+  prev_obstacles_ = sr.obstacles.excluded;
   advance(ground_T_camera, stamp_s, pl, pr, {sr.photometric});
   res.ground_T_camera = ground_T_camera;
   return res;

@@ -54,6 +54,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("update_weight", &s.update_weight, "update constraint mu at 0 m depth [1/m^2]", true);
   d("update_reference_depth_m", &s.update_reference_depth_m, "mu grows as (1 + (depth/this)^2) [m]", true);
   b("use_hierarchy", &s.use_hierarchy, "coarse-to-fine meshes (false: finest mesh at every level)");
+  b("model_rectification", &s.model_rectification,
+    "model the pair's residual vertical misalignment, measured by sparse matches", true);
   d("robust_scale_grey", &a.robust_scale_grey, "Cauchy scale of the photometric residual, <= 0 least squares [grey]", true);
   d("image_noise_std_grey", &a.image_noise_std_grey, "photometric noise sigma, sets the chi^2 scale [grey]", true);
   d("presmooth_sigma_px", &s.presmooth_sigma_px, "Gaussian blur of full-resolution images [px]");
@@ -83,6 +85,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
   i("prealign_level", &e.prealign_level, "pyramid level of the motion-only pre-alignment", true);
   b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
+  b("exclude_previous_obstacles", &e.exclude_previous_obstacles,
+    "temporal pairs skip samples on the previous frame's obstacle pixels", true);
+  b("use_cross_temporal_pair", &e.use_cross_temporal_pair,
+    "also align with the previous right image (ties motion to the stereo calibration)", true);
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
   d("max_residual_ratio", &e.max_residual_ratio, "median residual above this times the usual: failure", true);
   d("max_residual_increase_grey", &e.max_residual_increase_grey, "... and above the usual plus this [grey]", true);

@@ -40,6 +40,8 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
   std::string w;
   if (!aligner.isValid(&w)) return bad("aligner: " + w);
   if (!obstacles.isValid(&w)) return bad("obstacles: " + w);
+  if (!rectification.isValid(&w)) return bad("rectification: " + w);
+  if (!(min_rectification_correction_px >= 0.0)) return bad("min_rectification_correction_px must be >= 0");
   return true;
 }
 
@@ -130,10 +132,7 @@ bool StereoEstimator::fitGroundPlane(const ImagePyramid& left, const ImagePyrami
   state.camera_T_ground = camera_T_ground0;
   state.heights = Eigen::VectorXd::Zero(grid.vertexCount());
   state.photometric = {initialPhotometric(left, right, camera_T_ground0)};
-  AlignerTarget target;
-  target.pyramid = &right;
-  target.rig_fixed = true;
-  target.target_T_reference = Eigen::Translation3d(-rig_.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
+  const AlignerTarget target = stereoTarget(right, rectification_);
   AlignmentProblem prob;
   prob.reference = &left;
   prob.rig = &rig_;
@@ -246,7 +245,27 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
     res.message = "image pyramids have fewer levels than mesh_levels";
     return res;
   }
-  if (!fitGroundPlane(left, right, &res.ground_T_camera, &res.photometric, &res.reports, &res.message)) return res;
+  const StereoPairCheck check = checkPair(left, right);
+  if (!check.ok()) {
+    res.pair_check = check;
+    res.message = check.problem;
+    return res;
+  }
+  StereoResult res2 = estimateWith(left, right, modelled(rectification_set_ ? rectification_ : check.fit));
+  res2.pair_check = check;
+  return res2;
+}
+
+StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const ImagePyramid& right,
+                                           const VerticalMisalignment& m) const {
+  const StereoEstimatorOptions& o = options_;
+  StereoResult res;
+  res.rectification = m;
+  StereoEstimator local = *this;  // fitGroundPlane models the estimator's own misalignment
+  local.rectification_ = m;
+  if (!local.fitGroundPlane(left, right, &res.ground_T_camera, &res.photometric, &res.reports, &res.message)) {
+    return res;
+  }
 
   const int top = o.mesh_levels - 1;
   const int align = 1 << top;
@@ -262,10 +281,7 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   ao.max_iterations = o.iterations_per_level;
   const SurfaceAligner aligner(ao);
 
-  AlignerTarget target;
-  target.pyramid = &right;
-  target.rig_fixed = true;
-  target.target_T_reference = Eigen::Translation3d(-rig_.baseline_m, 0.0, 0.0) * Eigen::Isometry3d::Identity();
+  const AlignerTarget target = stereoTarget(right, res.rectification);
   res.obstacles = detectObstacles(left, right, res.grid, state.heights, state.camera_T_ground, res.photometric);
   AlignmentProblem prob;
   prob.reference = &left;
@@ -307,6 +323,39 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
   res.median_abs_residual_grey = last.median_abs_residual_grey;
   res.ok = true;
   return res;
+}
+
+Eigen::Isometry3d StereoEstimator::rightTLeft(const VerticalMisalignment& m) const {
+  return Eigen::Translation3d(-rig_.baseline_m, -m.rightCameraOffsetY(rig_), 0.0) * Eigen::Isometry3d::Identity();
+}
+
+AlignerTarget StereoEstimator::stereoTarget(const ImagePyramid& right, const VerticalMisalignment& m) const {
+  AlignerTarget target;
+  target.pyramid = &right;
+  target.rig_fixed = true;
+  target.target_T_reference = rightTLeft(m);
+  target.row_shift_px = m.row_shift_px;
+  return target;
+}
+
+VerticalMisalignment StereoEstimator::modelled(const VerticalMisalignment& m) const {
+  if (!options_.model_rectification) return VerticalMisalignment();
+  StereoRig r = rig_;
+  if (r.width <= 0 || r.height <= 0) {  // size unknown: the principal point as the half size
+    r.width = static_cast<int>(2.0 * r.cx + 1.0);
+    r.height = static_cast<int>(2.0 * r.cy + 1.0);
+  }
+  if (!(m.maxAbsPx(r, options_.rectification.max_disparity_px) >= options_.min_rectification_correction_px)) {
+    return VerticalMisalignment();
+  }
+  return m;
+}
+
+StereoPairCheck StereoEstimator::checkPair(const ImagePyramid& left, const ImagePyramid& right) const {
+  const int l = std::min(options_.rectification.match_level, left.levels() - 1);
+  RectificationMonitorOptions o = options_.rectification;
+  o.match_level = l;
+  return RectificationMonitor(o).measure(left.level(l).image, right.level(l).image, rig_);
 }
 
 ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const ImagePyramid& right,

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <type_traits>
 
 #include "stereo_ground_dem/PlaneGeometry.hpp"
 #include "stereo_ground_dem/TriangleRasterizer.hpp"
@@ -118,10 +119,17 @@ struct TriangleGeometry {
   bool drawn = false;
 };
 
+/// How a pair's warps map reference pixels: along rows only (a rectified stereo partner), by an
+/// affine map (no perspective division), or by a general homography.
+enum WarpKind { kWarpHorizontal = 0, kWarpAffine = 1, kWarpProjective = 2 };
+
 struct PairContext {
   Eigen::Isometry3d target_T_reference;
   Eigen::Vector3d t_prime;  ///< R_j^T t_j
-  bool horizontal_only;     ///< R = I and t = (tx, 0, 0): warps move along rows only
+  WarpKind kind;
+  bool row_shift = false;         ///< the target has a row shift (AlignerTarget::row_shift_px)
+  std::array<float, 6> shift{};   ///< its coefficients in this level's pixels
+  const cv::Mat* target_excluded = nullptr;  ///< the target's excluded pixels at this level
   bool world;               ///< world-fixed pair with motion estimated: accumulate Jm
   bool checkerboard;        ///< use every other pixel only
   int photo_index = -1;     ///< first global index of (dg, db), -1 when fixed
@@ -210,13 +218,29 @@ class LevelSolver {
       const Eigen::Matrix3d& r = c.target_T_reference.linear();
       const Eigen::Vector3d& tt = c.target_T_reference.translation();
       c.t_prime = r.transpose() * tt;
-      c.horizontal_only = (r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12 &&
-                          std::abs(tt.y()) < 1e-12 && std::abs(tt.z()) < 1e-12;
+      const bool no_rotation = (r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12;
+      if (no_rotation && std::abs(tt.z()) < 1e-12) {
+        c.kind = std::abs(tt.y()) < 1e-12 ? kWarpHorizontal : kWarpAffine;
+      } else {
+        c.kind = kWarpProjective;
+      }
+      const double level_scale = std::ldexp(1.0, -prob_.level);  // level-0 px -> this level's px
+      for (size_t a = 0; a < c.shift.size(); ++a) {
+        c.shift[a] = static_cast<float>(level_scale * t.row_shift_px[a]);
+        c.row_shift = c.row_shift || t.row_shift_px[a] != 0.0;
+      }
       c.world = opt_.estimate_motion && !t.rig_fixed;
       c.checkerboard = t.checkerboard;
       c.photo_index = photo_index_[j];
       c.photometric = s.photometric[j];
       c.image = &t.pyramid->level(prob_.level).image;
+      if (t.excluded && static_cast<int>(t.excluded->size()) > prob_.level &&
+          !(*t.excluded)[static_cast<size_t>(prob_.level)].empty()) {
+        c.target_excluded = &(*t.excluded)[static_cast<size_t>(prob_.level)];
+        if (c.target_excluded->size() != c.image->size() || c.target_excluded->type() != CV_8U) {
+          throw std::invalid_argument("SurfaceAligner: a target's excluded mask does not match its pyramid level");
+        }
+      }
     }
     return out;
   }
@@ -283,8 +307,9 @@ class LevelSolver {
       const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
       t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, t.heights_to_plane * z) * t.heights_to_plane;
       for (size_t j = 0; j < np; ++j) {
-        const Eigen::Matrix3d h = k * (pc[j].target_T_reference.linear() +
-                                       pc[j].target_T_reference.translation() * t.m.transpose()) *
+        const Eigen::Matrix3d h = k *
+                                  (pc[j].target_T_reference.linear() +
+                                   pc[j].target_T_reference.translation() * t.m.transpose()) *
                                   kinv;
         auto& hh = hom[j * ns + k2];
         for (int a = 0; a < 9; ++a) hh[static_cast<size_t>(a)] = static_cast<float>(h(a / 3, a % 3));
@@ -435,13 +460,7 @@ class LevelSolver {
       for (size_t j = 0; j < np; ++j) {
         const PairContext& p = pc[j];
         const bool photo = p.photo_index >= 0;
-        if (p.world) {
-          if (p.horizontal_only) pairRow<true, true>(p, j, ns, v, y, px, ch, photo);
-          else pairRow<false, true>(p, j, ns, v, y, px, ch, photo);
-        } else {
-          if (p.horizontal_only) pairRow<true, false>(p, j, ns, v, y, px, ch, photo);
-          else pairRow<false, false>(p, j, ns, v, y, px, ch, photo);
-        }
+        dispatchRow(p, j, ns, v, y, px, ch, photo);
       }
     }
     for (auto& pa : ch->pair) {
@@ -451,7 +470,26 @@ class LevelSolver {
     }
   }
 
-  template <bool kHorizontal, bool kWorld>
+  /// One instantiation of pairRow per warp kind, world-fixed or not, row shift or not.
+  void dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, const RowPixels& px, Chunk* ch,
+                   bool photo) const {
+    auto with = [&](auto kind, auto world) {
+      if (p.row_shift) pairRow<decltype(kind)::value, decltype(world)::value, true>(p, j, ns, v, y, px, ch, photo);
+      else pairRow<decltype(kind)::value, decltype(world)::value, false>(p, j, ns, v, y, px, ch, photo);
+    };
+    using H = std::integral_constant<int, kWarpHorizontal>;
+    using A = std::integral_constant<int, kWarpAffine>;
+    using P = std::integral_constant<int, kWarpProjective>;
+    using W = std::true_type;
+    using F = std::false_type;
+    switch (p.kind) {
+      case kWarpHorizontal: p.world ? with(H(), W()) : with(H(), F()); break;
+      case kWarpAffine: p.world ? with(A(), W()) : with(A(), F()); break;
+      case kWarpProjective: p.world ? with(P(), W()) : with(P(), F()); break;
+    }
+  }
+
+  template <int kKind, bool kWorld, bool kShift>
   void pairRow(const PairContext& p, size_t j, size_t ns, int v, float y, const RowPixels& px, Chunk* ch,
                bool photo) const {
     constexpr int kStride = kWorld ? kStrideWorld : kStrideRig;
@@ -470,6 +508,10 @@ class LevelSolver {
     const float tx = static_cast<float>(p.t_prime.x()), ty = static_cast<float>(p.t_prime.y()),
                 tz = static_cast<float>(p.t_prime.z());
     const float vf = static_cast<float>(v);
+    const float cx = static_cast<float>(rig_.cx), cy = static_cast<float>(rig_.cy);
+    const float ifx = static_cast<float>(1.0 / rig_.fx), ify = static_cast<float>(1.0 / rig_.fy);
+    const std::array<float, 6>& sh = p.shift;
+    const cv::Mat* tex = p.target_excluded;
     PairAccumulator& pa = ch->pair[j];
     double* tri_acc = ch->tri[j].data();
     // Sums in double: a triangle's 3x3 block is nearly rank-deficient (its pixels' rays are
@@ -494,9 +536,12 @@ class LevelSolver {
       const auto& h = hom[j * ns + static_cast<size_t>(slot)];
       const float uf = static_cast<float>(u);
       float uj, vj;
-      if (kHorizontal) {
+      if (kKind == kWarpHorizontal) {
         uj = h[0] * uf + h[1] * vf + h[2];
         vj = vf;
+      } else if (kKind == kWarpAffine) {
+        uj = h[0] * uf + h[1] * vf + h[2];
+        vj = h[3] * uf + h[4] * vf + h[5];
       } else {
         const float wz = h[6] * uf + h[7] * vf + h[8];
         if (!(wz > 1e-6f)) {
@@ -508,11 +553,16 @@ class LevelSolver {
         uj = (h[0] * uf + h[1] * vf + h[2]) * iw;
         vj = (h[3] * uf + h[4] * vf + h[5]) * iw;
       }
+      if (kShift) {  // the target's rectification error (AlignerTarget::row_shift_px)
+        const float xn = (uj - cx) * ifx, yn = (vj - cy) * ify;
+        vj += sh[0] + xn * (sh[1] + sh[3] * yn + sh[4] * xn) + yn * (sh[2] + sh[5] * yn);
+      }
       if (!(uj >= 0.0f && vj >= 0.0f && uj < wmax && vj < hmax)) {
         cost += outside_cost;
         ++outside;
         continue;
       }
+      if (tex && tex->at<uint8_t>(static_cast<int>(vj + 0.5f), static_cast<int>(uj + 0.5f))) continue;
       const float ij = bilinear(img, uj, vj);
       if (ij <= dark || ij >= sat) continue;
       const float i0 = px.i0[k];
