@@ -22,6 +22,8 @@ PKGS=(
   # the README's ROS commands on a fresh machine: rosrun (rosbash), roslaunch, rosbag play; rviz
   # headless for the screenshot (docs/ros.md): Xvfb, xauth and imagemagick's import
   rosbash xvfb xauth imagemagick
+  # scripts/ros_realtime_check.py subscribes to sensor_msgs/Image
+  python3-sensor-msgs
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -23,6 +23,8 @@ void DemPublisher::advertise(ros::NodeHandle& tf_nh, ros::NodeHandle& pnh,
                              const ros::SubscriberStatusCallback& cb) {
   tf_buffer_ = std::make_shared<tf2_ros::Buffer>();
   tf_listener_ = std::make_shared<tf2_ros::TransformListener>(*tf_buffer_, tf_nh, false);
+  // tf_nh's queue is spun by threads other than the one that waits in canTransform (the worker)
+  tf_buffer_->setUsingDedicatedThread(true);
   tf_broadcaster_ = std::make_shared<tf2_ros::TransformBroadcaster>();
   pub_dem_ = pnh.advertise<HeightGrid>("dem", 1, cb, cb);
   pub_dem_global_ = pnh.advertise<HeightGrid>("dem_global", 1, cb, cb, ros::VoidConstPtr(), true);
