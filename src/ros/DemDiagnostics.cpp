@@ -49,10 +49,10 @@ void DemDiagnostics::countSynchronized() {
   ++counts_.synchronized;
 }
 
-void DemDiagnostics::checkGap(const ros::Time& stamp) {
+void DemDiagnostics::checkGap(const ros::Time& stamp, bool report_gap) {
   std::lock_guard<std::mutex> lock(mutex_);
   const std::string gap = monitor_.frameGap(stamp.toSec());
-  if (!gap.empty()) report(gap, false);
+  if (!gap.empty() && report_gap) report(gap, false);
 }
 
 void DemDiagnostics::skipped(const std::string& problem) {

@@ -256,8 +256,9 @@ void DemNodelet::frameCb(const sensor_msgs::ImageConstPtr& left, const sensor_ms
     diagnostics_->skipped(stamp.message + " (frame skipped)");
     return;
   }
-  if (stamp.verdict == StampSequenceChecker::Verdict::kRestart) worker_->requestReset(stamp.message, true);
-  diagnostics_->checkGap(left->header.stamp);
+  const bool restart = stamp.verdict == StampSequenceChecker::Verdict::kRestart;
+  if (restart) worker_->requestReset(stamp.message, true);
+  diagnostics_->checkGap(left->header.stamp, !restart);
   try {
     frame.left = ImageMessageConverter::toMat(*left);
     frame.right = ImageMessageConverter::toMat(*right);

@@ -49,8 +49,9 @@ class DemDiagnostics {
   void setSubscribed(bool subscribed);
   void countInput(InputMonitor::Topic topic, const ros::Time& stamp);
   void countSynchronized();
-  /// Records the stamp of a valid frame; a gap (InputMonitor::frameGap) is reported as a warning.
-  void checkGap(const ros::Time& stamp);
+  /// Records the stamp of a valid frame; a gap (InputMonitor::frameGap) is reported as a warning
+  /// unless report_gap is false (the frame restarts the map, which is reported instead).
+  void checkGap(const ros::Time& stamp, bool report_gap = true);
 
   /// A frame that never reaches the core (invalid input): counted as skipped, ERROR.
   void skipped(const std::string& problem);
