@@ -19,6 +19,11 @@ PKGS=(
   libstd-srvs-dev libdiagnostic-msgs-dev libtf2-msgs-dev libtf2-eigen-dev python3-tf2-ros
   python3-std-srvs python3-genmsg python3-diagnostic-msgs python3-nav-msgs python3-roslib
   ros-stereo-image-proc libtbb-dev rviz
+  # the README's ROS commands on a fresh machine: rosrun (rosbash), roslaunch, rosbag play; rviz
+  # headless for the screenshot (docs/ros.md): Xvfb, xauth and imagemagick's import
+  rosbash xvfb xauth imagemagick
+  # scripts/ros_realtime_check.py subscribes to sensor_msgs/Image
+  python3-sensor-msgs
 )
 missing=()
 for p in "${PKGS[@]}"; do

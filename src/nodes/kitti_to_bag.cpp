@@ -16,6 +16,17 @@
 //   --bad-encoding FRAMES  both images labelled bayer_rggb8
 //   --drop-info FRAMES     no left camera_info for these frames (the pair never synchronizes)
 //   --drop FRAMES          nothing at all for these frames (a gap of dropped frames)
+//   --generic-16u FRAMES   images as 16UC1 big-endian (grey * 257): a depth-style encoding
+//   --mono16-be FRAMES     images as mono16 big-endian (grey * 257): valid, byte-swapped by the node
+//   --nan-info FRAMES      NaN in the left camera_info's P[2] (cx)
+//   --inconsistent-info FRAMES  right camera_info with fx 1 % larger than the left
+//   --change-info-from FRAME    from this frame on cx and cy are 2 px larger (a new calibration)
+//   --unsync FRAMES        right image and camera_info stamped 30 ms later (never synchronize exactly)
+//   --black FRAMES, --saturated FRAMES   images all 0 / all 255
+//   --duplicate-stamp FRAMES   header stamps equal to the previous frame's
+//   --stamp-offset FRAME:SECONDS[,...]  header stamps of one frame shifted (out of order)
+//   --time-shift FRAME:SECONDS  header stamps of this and every later frame shifted (a clock jump)
+// Bag (record) times stay the original, increasing ones: a defective stamp arrives in its place.
 #include <ros/time.h>
 #include <rosbag/bag.h>
 #include <rosgraph_msgs/Clock.h>
@@ -25,10 +36,12 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <boost/make_shared.hpp>
+#include <map>
 #include <set>
 #include <sstream>
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -57,7 +70,17 @@ const char* kUsage =
     "  --bad-size FRAMES  right image and camera_info one column narrower (FRAMES: 3,4,7)\n"
     "  --bad-encoding FRAMES  images labelled bayer_rggb8\n"
     "  --drop-info FRAMES no left camera_info for these frames\n"
-    "  --drop FRAMES      nothing for these frames (a gap)\n";
+    "  --drop FRAMES      nothing for these frames (a gap)\n"
+    "  --generic-16u FRAMES  images as 16UC1 big-endian\n"
+    "  --mono16-be FRAMES images as mono16 big-endian (valid)\n"
+    "  --nan-info FRAMES  NaN in the left camera_info P\n"
+    "  --inconsistent-info FRAMES  right camera_info fx 1 % larger\n"
+    "  --change-info-from FRAME  cx, cy 2 px larger from this frame on\n"
+    "  --unsync FRAMES    right image and camera_info stamped 30 ms later\n"
+    "  --black FRAMES, --saturated FRAMES  images all 0 / all 255\n"
+    "  --duplicate-stamp FRAMES  stamps equal to the previous frame's\n"
+    "  --stamp-offset FRAME:SECONDS[,...]  stamps of one frame shifted\n"
+    "  --time-shift FRAME:SECONDS  stamps of this and later frames shifted\n";
 
 struct Args {
   std::string sequence, out, ns = "stereo", frame_id = "left_camera_optical";
@@ -67,8 +90,32 @@ struct Args {
   bool static_tf = false;
   std::string base_frame = "base_link";
   double camera_height = 1.65;
-  std::set<int> bad_size, bad_encoding, drop_info, drop;
+  std::set<int> bad_size, bad_encoding, drop_info, drop, generic_16u, mono16_be, nan_info, inconsistent_info, unsync,
+      black, saturated, duplicate_stamp;
+  int change_info_from = -1;
+  std::map<int, double> stamp_offset;
+  int time_shift_from = -1;
+  double time_shift_s = 0.0;
 };
+
+std::map<int, double> frameOffsets(const std::string& flag, const std::string& text) {
+  std::map<int, double> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const size_t colon = item.find(':');
+    char* end = nullptr;
+    const long f = colon == std::string::npos ? -1 : std::strtol(item.substr(0, colon).c_str(), &end, 10);
+    const std::string value = colon == std::string::npos ? "" : item.substr(colon + 1);
+    char* vend = nullptr;
+    const double v = std::strtod(value.c_str(), &vend);
+    if (f < 0 || *end != '\0' || value.empty() || *vend != '\0' || !std::isfinite(v)) {
+      throw std::invalid_argument(flag + " expects FRAME:SECONDS like 5:-0.03, got '" + text + "'");
+    }
+    out[static_cast<int>(f)] = v;
+  }
+  return out;
+}
 
 std::set<int> frameList(const std::string& flag, const std::string& text) {
   std::set<int> out;
@@ -115,6 +162,22 @@ Args parse(int argc, char** argv) {
     else if (k == "--bad-encoding") a.bad_encoding = frameList(k, value());
     else if (k == "--drop-info") a.drop_info = frameList(k, value());
     else if (k == "--drop") a.drop = frameList(k, value());
+    else if (k == "--generic-16u") a.generic_16u = frameList(k, value());
+    else if (k == "--mono16-be") a.mono16_be = frameList(k, value());
+    else if (k == "--nan-info") a.nan_info = frameList(k, value());
+    else if (k == "--inconsistent-info") a.inconsistent_info = frameList(k, value());
+    else if (k == "--change-info-from") a.change_info_from = static_cast<int>(number(k, value()));
+    else if (k == "--unsync") a.unsync = frameList(k, value());
+    else if (k == "--black") a.black = frameList(k, value());
+    else if (k == "--saturated") a.saturated = frameList(k, value());
+    else if (k == "--duplicate-stamp") a.duplicate_stamp = frameList(k, value());
+    else if (k == "--stamp-offset") a.stamp_offset = frameOffsets(k, value());
+    else if (k == "--time-shift") {
+      const std::map<int, double> m = frameOffsets(k, value());
+      if (m.size() != 1) throw std::invalid_argument("--time-shift takes one FRAME:SECONDS");
+      a.time_shift_from = m.begin()->first;
+      a.time_shift_s = m.begin()->second;
+    }
     else if (k == "-h" || k == "--help") {
       std::cout << kUsage;
       std::exit(0);
@@ -152,6 +215,29 @@ sensor_msgs::Image toImage(const cv::Mat& in, const std_msgs::Header& header) {
   img.step = static_cast<uint32_t>(m.cols * m.elemSize());
   img.data.resize(static_cast<size_t>(img.step) * img.height);
   for (int r = 0; r < m.rows; ++r) std::copy_n(m.ptr<uint8_t>(r), img.step, img.data.data() + static_cast<size_t>(r) * img.step);
+  return img;
+}
+
+/// An 8-bit grey (or colour, converted to grey) image as 16 bits (grey * 257), big-endian bytes.
+sensor_msgs::Image toImage16BigEndian(const cv::Mat& in, const std_msgs::Header& header, const std::string& encoding) {
+  cv::Mat grey = in;
+  if (in.channels() == 3) cv::cvtColor(in, grey, cv::COLOR_BGR2GRAY);
+  if (in.channels() == 4) cv::cvtColor(in, grey, cv::COLOR_BGRA2GRAY);
+  if (grey.depth() != CV_8U) throw std::runtime_error("--generic-16u / --mono16-be need 8-bit images");
+  sensor_msgs::Image img;
+  img.header = header;
+  img.height = static_cast<uint32_t>(grey.rows);
+  img.width = static_cast<uint32_t>(grey.cols);
+  img.encoding = encoding;
+  img.is_bigendian = 1;
+  img.step = img.width * 2;
+  img.data.resize(static_cast<size_t>(img.step) * img.height);
+  for (int r = 0; r < grey.rows; ++r)
+    for (int c = 0; c < grey.cols; ++c) {
+      const unsigned v = grey.at<uint8_t>(r, c) * 257u;
+      img.data[static_cast<size_t>(r) * img.step + 2 * c] = static_cast<uint8_t>(v >> 8);
+      img.data[static_cast<size_t>(r) * img.step + 2 * c + 1] = static_cast<uint8_t>(v & 0xff);
+    }
   return img;
 }
 
@@ -209,6 +295,7 @@ int run(const Args& a) {
     bag.write("/tf_static", t.header.stamp, m, header);
   }
   int written = 0;
+  ros::Time previous_stamp;
   for (int i = 0; i < n; ++i) {
     if (a.drop.count(i)) continue;
     ++written;
@@ -216,26 +303,45 @@ int run(const Args& a) {
     seq.read(i, &left, &right);
     const double t = a.start_time + (seq.stamp(i) - t0);
     clockUpTo(t);
+    const ros::Time record_time(t);  // bag order: always the original, increasing time
     std_msgs::Header h;
     h.seq = static_cast<uint32_t>(i);
-    h.stamp = ros::Time(t);
+    double stamp = t;
+    if (a.time_shift_from >= 0 && i >= a.time_shift_from) stamp += a.time_shift_s;
+    if (a.stamp_offset.count(i)) stamp += a.stamp_offset.at(i);
+    h.stamp = a.duplicate_stamp.count(i) && !previous_stamp.isZero() ? previous_stamp : ros::Time(stamp);
+    previous_stamp = h.stamp;
     h.frame_id = a.frame_id;
+    if (a.black.count(i)) left.setTo(0), right.setTo(0);
+    if (a.saturated.count(i)) left.setTo(255), right.setTo(255);
     StereoRig r = rig;
     r.width = left.cols;
     r.height = left.rows;
+    if (a.change_info_from >= 0 && i >= a.change_info_from) r.cx += 2.0, r.cy += 2.0;
+    std_msgs::Header hr = h;
+    if (a.unsync.count(i)) hr.stamp += ros::Duration(0.03);
     sensor_msgs::Image li = toImage(left, h), ri;
-    sensor_msgs::CameraInfo rci = toInfo(r, -r.fx * r.baseline_m, h);
+    StereoRig rr = r;
+    if (a.inconsistent_info.count(i)) rr.fx *= 1.01;
+    sensor_msgs::CameraInfo lci = toInfo(r, 0.0, h), rci = toInfo(rr, -rr.fx * r.baseline_m, hr);
+    if (a.nan_info.count(i)) lci.P[2] = std::numeric_limits<double>::quiet_NaN();
     if (a.bad_size.count(i)) {
-      ri = toImage(right(cv::Rect(0, 0, right.cols - 1, right.rows)).clone(), h);
+      ri = toImage(right(cv::Rect(0, 0, right.cols - 1, right.rows)).clone(), hr);
       rci.width -= 1;
     } else {
-      ri = toImage(right, h);
+      ri = toImage(right, hr);
     }
     if (a.bad_encoding.count(i)) li.encoding = ri.encoding = sensor_msgs::image_encodings::BAYER_RGGB8;
-    bag.write(a.ns + "/left/image_rect", h.stamp, li);
-    if (!a.drop_info.count(i)) bag.write(a.ns + "/left/camera_info", h.stamp, toInfo(r, 0.0, h));
-    bag.write(a.ns + "/right/image_rect", h.stamp, ri);
-    bag.write(a.ns + "/right/camera_info", h.stamp, rci);
+    if (a.generic_16u.count(i) || a.mono16_be.count(i)) {
+      const std::string e = a.generic_16u.count(i) ? sensor_msgs::image_encodings::TYPE_16UC1
+                                                   : sensor_msgs::image_encodings::MONO16;
+      li = toImage16BigEndian(left, h, e);
+      ri = toImage16BigEndian(right, hr, e);
+    }
+    bag.write(a.ns + "/left/image_rect", record_time, li);
+    if (!a.drop_info.count(i)) bag.write(a.ns + "/left/camera_info", record_time, lci);
+    bag.write(a.ns + "/right/image_rect", record_time, ri);
+    bag.write(a.ns + "/right/camera_info", record_time, rci);
   }
   bag.close();
   std::printf("wrote %d stereo frames (%dx%d, baseline %.4f m) to %s: %s/{left,right}/{image_rect,camera_info}%s%s\n",

@@ -3,6 +3,7 @@
 #include <sensor_msgs/image_encodings.h>
 
 #include <Eigen/Core>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 
@@ -45,6 +46,14 @@ void checkOneInfo(const sensor_msgs::CameraInfo& info, const std::string& side) 
        << roi.x_offset << "," << roi.y_offset << "); publish full rectified images";
     throw std::invalid_argument(os.str());
   }
+  for (size_t i = 0; i < info.P.size(); ++i) {
+    if (!std::isfinite(info.P[i])) {
+      std::ostringstream os;
+      os << side << " camera_info P[" << i << "] is " << info.P[i]
+         << ": the calibration is broken (NaN or infinite projection matrix)";
+      throw std::invalid_argument(os.str());
+    }
+  }
   bool all_zero = true;
   for (double v : info.P) all_zero = all_zero && v == 0.0;
   if (all_zero) {
@@ -63,6 +72,11 @@ std::string StereoInputValidator::checkEncoding(const std::string& encoding) {
            "to image_rect";
   }
   if (encoding.empty()) return "the image has no encoding";
+  if (encoding == enc::TYPE_8UC1 || encoding == enc::TYPE_16UC1) {
+    return "encoding '" + encoding +
+           "' is a generic (depth-image) encoding, not a grey image: publish mono8 or mono16 (or remap the "
+           "camera's image_rect, not a depth image)";
+  }
   return "encoding '" + encoding + "' is not supported (use mono8, mono16, bgr8 or rgb8)";
 }
 

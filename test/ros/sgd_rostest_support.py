@@ -145,11 +145,13 @@ class Recorder(object):
 
 
 class BagPlayer(object):
-    """Publishes a bag's frames (all messages of one stamp together) every `period_s` seconds of wall
-    time per 0.1 s of bag time (gaps stay gaps), with their own stamps; /tf_static once, latched."""
+    """Publishes a bag's frames (the messages recorded at one bag time together) every `period_s`
+    seconds of wall time per 0.1 s of bag time (gaps stay gaps), with their own header stamps (which
+    kitti_to_bag's defect options may make differ from the bag time); /tf_static once, latched.
+    `published`: (frame index, left image header stamp, wall time) per frame."""
 
     def __init__(self, bag_path):
-        self.frames = []  # (original stamp, [(topic, msg)])
+        self.frames = []  # (bag time, header stamp of the first message, [(topic, msg)])
         self.static_tf = None
         pubs = {}
         with rosbag.Bag(bag_path) as bag:
@@ -159,10 +161,10 @@ class BagPlayer(object):
                 if topic == '/tf_static':
                     self.static_tf = msg
                     continue
-                stamp = msg.header.stamp.to_sec()
-                if not self.frames or abs(self.frames[-1][0] - stamp) > 1e-6:
-                    self.frames.append((stamp, []))
-                self.frames[-1][1].append((topic, msg))
+                t = t.to_sec()
+                if not self.frames or abs(self.frames[-1][0] - t) > 1e-6:
+                    self.frames.append((t, msg.header.stamp.to_sec(), []))
+                self.frames[-1][2].append((topic, msg))
                 if topic not in pubs:
                     pubs[topic] = rospy.Publisher(topic, type(msg), queue_size=10)
         self.pubs = pubs
@@ -185,10 +187,10 @@ class BagPlayer(object):
                 t.header.stamp = now
             self.tf_pub.publish(self.static_tf)
         t0 = time.time() + 0.5
-        s0 = self.frames[0][0]
-        for k, (stamp, msgs) in enumerate(self.frames):
+        b0 = self.frames[0][0]
+        for k, (bag_time, stamp, msgs) in enumerate(self.frames):
             # the bag's spacing is kept (gaps stay gaps): period_s of wall time per 0.1 s of bag time
-            target = t0 + (stamp - s0) / 0.1 * period_s
+            target = t0 + (bag_time - b0) / 0.1 * period_s
             delay = target - time.time()
             if delay > 0:
                 time.sleep(delay)

@@ -1,15 +1,19 @@
 // The ROS layer's conversion classes without a ROS graph (plain gtest): HeightGrid <-> DEM layers,
 // traversability -> OccupancyGrid, mesh marker, camera_info / image validation, input monitor,
-// motion covariance.
+// motion covariance, the worker's frame slot, stamp checks.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
+#include <thread>
 
 #include "stereo_ground_dem/ros/HeightGridConverter.hpp"
 #include "stereo_ground_dem/ros/HeightMeshBuilder.hpp"
+#include "stereo_ground_dem/ros/ImageMessageConverter.hpp"
 #include "stereo_ground_dem/ros/InputMonitor.hpp"
+#include "stereo_ground_dem/ros/LatestFrameSlot.hpp"
 #include "stereo_ground_dem/ros/MotionCovariance.hpp"
+#include "stereo_ground_dem/ros/StampSequenceChecker.hpp"
 #include "stereo_ground_dem/ros/StereoInputValidator.hpp"
 #include "stereo_ground_dem/ros/TraversabilityCostTable.hpp"
 
@@ -178,4 +182,108 @@ TEST(MotionCovariance, InverseFallbackAndFrameChange) {
   EXPECT_NEAR(cb(0, 0), 3, 1e-12);  // base x = camera z
   EXPECT_NEAR(cb(1, 1), 1, 1e-12);
   EXPECT_NEAR(cb(2, 2), 2, 1e-12);
+}
+
+TEST(StereoInputValidator, NaNCameraInfoAndGenericEncodings) {
+  StereoInputValidator v;
+  auto l = info(500, 0), r = info(500, -500 * 0.54);
+  l.P[2] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(v.check(image("mono8"), l, image("mono8"), r).problem,
+            "camera_info: left camera_info P[2] is nan: the calibration is broken (NaN or infinite projection matrix)");
+  const auto good = info(500, 0);
+  sensor_msgs::Image be = image("16UC1");
+  be.step = 640 * 2;
+  be.data.assign(static_cast<size_t>(be.step) * 480, 1);
+  be.is_bigendian = 1;
+  EXPECT_EQ(v.check(be, good, be, r).problem,
+            "left image: encoding '16UC1' is a generic (depth-image) encoding, not a grey image: publish mono8 or "
+            "mono16 (or remap the camera's image_rect, not a depth image)");
+  // inconsistent pair: different focal lengths
+  EXPECT_NE(v.check(image("mono8"), good, image("mono8"), info(510, -510 * 0.54)).problem.find("camera_info"),
+            std::string::npos);
+}
+
+TEST(ImageMessageConverter, SharesOrSwapsBytes) {
+  sensor_msgs::Image m = image("mono16", 4, 2);
+  for (size_t i = 0; i < m.data.size(); i += 2) {  // value 0x0102 + i in big-endian byte order
+    m.data[i] = 0x01;
+    m.data[i + 1] = static_cast<uint8_t>(0x02 + i);
+  }
+  m.is_bigendian = 1;
+  const cv::Mat big = ImageMessageConverter::toMat(m);
+  ASSERT_EQ(big.type(), CV_16UC1);
+  EXPECT_EQ(big.at<uint16_t>(0, 0), 0x0102);
+  EXPECT_EQ(big.at<uint16_t>(1, 3), 0x0102 + 14);
+  EXPECT_NE(big.data, m.data.data());  // swapped copy
+  m.is_bigendian = 0;
+  const cv::Mat little = ImageMessageConverter::toMat(m);
+  EXPECT_EQ(little.at<uint16_t>(0, 0), 0x0201);
+  EXPECT_EQ(little.data, m.data.data());  // shared, no copy
+  const sensor_msgs::Image c = image("bgr8", 5, 3);
+  const cv::Mat bgr = ImageMessageConverter::toMat(c);
+  EXPECT_EQ(bgr.type(), CV_8UC3);
+  EXPECT_EQ(bgr.data, c.data.data());
+  EXPECT_THROW(ImageMessageConverter::toMat(image("bayer_rggb8")), std::invalid_argument);
+}
+
+TEST(LatestFrameSlot, KeepsOnlyTheNewest) {
+  LatestFrameSlot<int> slot;
+  EXPECT_FALSE(slot.put(1).has_value());
+  const std::optional<int> dropped = slot.put(2);  // 1 was not taken: replaced, handed back
+  ASSERT_TRUE(dropped.has_value());
+  EXPECT_EQ(*dropped, 1);
+  int v = 0;
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kItem);
+  EXPECT_EQ(v, 2);
+  EXPECT_FALSE(slot.occupied());
+  slot.wake();
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kWoken);
+  slot.put(3);
+  slot.wake();  // an item and a wake-up: the item first, then the wake-up
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kItem);
+  EXPECT_EQ(v, 3);
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kWoken);
+  EXPECT_EQ(slot.puts(), 3);
+  slot.put(4);
+  slot.close();
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kClosed);  // pending item discarded
+  EXPECT_TRUE(slot.put(5).has_value());                             // nobody will take it
+}
+
+TEST(LatestFrameSlot, CloseEndsABlockedTake) {
+  LatestFrameSlot<int> slot;
+  LatestFrameSlot<int>::Taken result = LatestFrameSlot<int>::Taken::kItem;
+  std::thread consumer([&] {
+    int v = 0;
+    result = slot.take(&v);
+  });
+  slot.close();
+  consumer.join();
+  EXPECT_EQ(result, LatestFrameSlot<int>::Taken::kClosed);
+}
+
+TEST(StampSequenceChecker, Verdicts) {
+  using V = StampSequenceChecker::Verdict;
+  StampSequenceChecker s(0.05, 2.0);
+  EXPECT_EQ(s.check(0.0).message,
+            "the images have no time stamp (header.stamp is 0): the estimator needs capture times");
+  EXPECT_EQ(s.check(100.0).verdict, V::kAccept);
+  EXPECT_EQ(s.check(100.1).verdict, V::kAccept);
+  StampSequenceChecker::Result r = s.check(100.1);
+  EXPECT_EQ(r.verdict, V::kSkip);
+  EXPECT_EQ(r.message, "duplicate time stamp: the frame has the same stamp as the previous one");
+  r = s.check(100.07);
+  EXPECT_EQ(r.verdict, V::kSkip);
+  EXPECT_EQ(r.message, "time stamp goes backwards by 0.030 s (frames out of order)");
+  EXPECT_EQ(s.check(100.2).verdict, V::kAccept);  // the skipped frames did not move the reference
+  r = s.check(99.0);
+  EXPECT_EQ(r.verdict, V::kRestart);
+  EXPECT_EQ(r.message, "time jumped back by 1.200 s (bag restarted or looped?): starting a new map");
+  EXPECT_EQ(s.check(99.1).verdict, V::kAccept);  // the restart is the new reference
+  EXPECT_EQ(s.check(100.5).verdict, V::kAccept);  // a 1.4 s gap is bridged by the prediction
+  r = s.check(103.0);
+  EXPECT_EQ(r.verdict, V::kRestart);
+  EXPECT_EQ(r.message,
+            "time jumped forward by 2.500 s (more than ~max_stamp_gap_s 2.000 s; the motion over the gap is unknown): "
+            "starting a new map");
 }

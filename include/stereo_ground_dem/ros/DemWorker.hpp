@@ -1,0 +1,80 @@
+#pragma once
+/// \file DemWorker.hpp
+/// The processing thread of stereo_ground_dem/DemNodelet. The image callback hands validated
+/// frames over through a one-element LatestFrameSlot (a frame not yet taken is replaced by the
+/// newer one and counted as dropped: never queued); this thread takes the latest, runs the core's
+/// IncrementalEstimator (which it alone owns), publishes through DemPublisher and then publishes a
+/// MapSnapshot (a copy of the map) for the services. No lock is held while a frame is processed:
+/// services, diagnostics and dynamic_reconfigure answer meanwhile.
+///
+/// Resets (service, stamps jumping, calibration change) are requests: requestReset() empties the
+/// snapshot at once (the services see an empty map from then on), wakes the thread and returns; the
+/// thread resets the estimator before it takes the next frame, and a frame that was being processed
+/// when the request came is not published.
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/ros/DemDiagnostics.hpp"
+#include "stereo_ground_dem/ros/DemPublisher.hpp"
+#include "stereo_ground_dem/ros/LatestFrameSlot.hpp"
+#include "stereo_ground_dem/ros/MapSnapshot.hpp"
+#include "stereo_ground_dem/ros/StereoFrame.hpp"
+
+namespace stereo_ground_dem {
+
+class DemWorker {
+ public:
+  DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
+            const std::string& logger);
+  ~DemWorker();  ///< stop()
+
+  void start();
+  /// Closes the slot and joins the thread (a frame being processed is finished first).
+  void stop();
+
+  /// Hands a frame over; returns true when it replaced a frame that was not processed yet.
+  bool submit(StereoFrame frame);
+  /// Asks for a new map before the next frame; returns at once (see the file comment).
+  void requestReset(const std::string& why, bool warning);
+  /// New estimator options: used when the estimator is (re)created, i.e. now if no frame has been
+  /// mapped yet, else at the next reset. Returns true when they apply without a reset.
+  bool setEstimatorOptions(const IncrementalEstimatorOptions& options);
+  /// Estimator options waiting for a reset.
+  bool optionsPending() const;
+
+  /// The map as of the last published frame (map == nullptr: nothing mapped).
+  std::shared_ptr<const MapSnapshot> snapshot() const;
+
+ private:
+  void run();
+  void applyReset();
+  void process(StereoFrame& frame);
+
+  DemPublisher& publisher_;
+  DemDiagnostics& diagnostics_;
+  const std::string logger_;
+  LatestFrameSlot<StereoFrame> slot_;
+  std::thread thread_;
+
+  mutable std::mutex control_mutex_;  ///< guards the fields below (never held while processing)
+  IncrementalEstimatorOptions options_;
+  bool options_changed_ = false;      ///< options_ differ from the running estimator's
+  bool initialized_ = false;          ///< mirror of estimator_->initialized()
+  long reset_requested_ = 0;          ///< generation counters
+  long reset_applied_ = 0;
+  std::string reset_reason_;
+  std::shared_ptr<const MapSnapshot> snapshot_;
+
+  // processing thread only
+  std::unique_ptr<IncrementalEstimator> estimator_;
+  std::vector<Eigen::Vector2d> trajectory_xy_;
+  long fused_frames_ = 0;
+  double last_processed_stamp_s_ = -1.0;
+};
+
+}  // namespace stereo_ground_dem

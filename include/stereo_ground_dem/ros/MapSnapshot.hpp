@@ -1,0 +1,25 @@
+#pragma once
+/// \file MapSnapshot.hpp
+/// The state the services read, published by the processing thread after every fused frame: a
+/// copy of the map (services never touch the estimator's own map, so they answer while a frame is
+/// processed and never see a half-fused one), the ground frame and the trajectory.
+
+#include <ros/time.h>
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <vector>
+
+#include "stereo_ground_dem/ElevationMap.hpp"
+
+namespace stereo_ground_dem {
+
+struct MapSnapshot {
+  std::shared_ptr<const ElevationMap> map;                ///< null: nothing mapped (yet, or since a reset)
+  Eigen::Isometry3d ground_T_camera0 = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Vector2d> trajectory_xy;             ///< ground (x, y) of the left camera per frame
+  ros::Time stamp;                                        ///< of the last fused frame
+  long frame_count = 0;                                   ///< frames fused into this map
+};
+
+}  // namespace stereo_ground_dem

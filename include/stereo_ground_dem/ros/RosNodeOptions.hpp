@@ -1,0 +1,48 @@
+#pragma once
+/// \file RosNodeOptions.hpp
+/// The nodelet's own private parameters (docs/ros.md, "Parameters"; the estimator's are the core's
+/// ParameterTable names, read by PipelineParameters), read once in onInit and checked: load() throws
+/// std::invalid_argument listing every invalid value, so the node refuses to start with the reason.
+
+#include <ros/node_handle.h>
+
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/ros/HeightMeshBuilder.hpp"
+
+namespace stereo_ground_dem {
+
+struct RosNodeOptions {
+  int queue_size = 5;                 ///< synchronizer and subscriber queues [messages]
+  bool approximate_sync = false;      ///< approximate instead of exact time synchronization
+  double slop_s = 0.01;               ///< approximate sync: max. stamp difference [s]
+  bool lazy = true;                   ///< subscribe to the cameras only while an output has a subscriber
+  std::string odom_frame = "odom";
+  std::string base_frame = "base_link";  ///< '' publishes odom -> camera frame
+  std::string camera_frame;           ///< '' takes the left image's header.frame_id
+  bool publish_tf = true;
+  double tf_wait_s = 0.5;             ///< wait for base_frame -> camera on the first frame [s]
+  double local_map_size_m = 50.0;     ///< side of the local window [m]
+  double local_map_forward_m = 15.0;  ///< its centre ahead of the camera [m]
+  double global_map_rate_hz = 0.5;    ///< whole-map topics at most this often [Hz]; 0: never
+  int global_map_max_cells = 250000;  ///< decimation bound of the whole map and of get_submap
+  int occupancy_unknown_below = 1;    ///< cells observed by fewer frames are -1 in the OccupancyGrid
+  int path_max_poses = 2000;
+  std::string save_directory = "stereo_ground_dem_map";  ///< default of ~save_map
+  double diagnostic_period_s = 1.0;
+  double input_check_period_s = 2.0;
+  double unobserved_std_m = 0.5;      ///< covariance of frames without a motion estimate [m]
+  double unobserved_std_rad = 0.1;    ///< ... [rad]
+  double restart_back_s = 0.05;       ///< a stamp older than the last by more starts a new map [s]
+  double max_stamp_gap_s = 2.0;       ///< a stamp newer than the last by more starts a new map [s]
+  std::string image_transport = "raw";
+  HeightMeshOptions mesh;             ///< mesh_max_triangles
+
+  /// Reads every name of names() from `pnh` (absent: the default above) and checks the values.
+  static RosNodeOptions load(const ros::NodeHandle& pnh);
+  /// The private parameter names the ROS layer reads.
+  static const std::vector<std::string>& names();
+};
+
+}  // namespace stereo_ground_dem

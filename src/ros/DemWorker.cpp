@@ -1,0 +1,189 @@
+#include "stereo_ground_dem/ros/DemWorker.hpp"
+
+#include <ros/ros.h>
+
+#include <cmath>
+
+namespace stereo_ground_dem {
+
+namespace {
+bool sameRig(const StereoRig& a, const StereoRig& b) {
+  return a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.baseline_m == b.baseline_m &&
+         a.width == b.width && a.height == b.height;
+}
+}  // namespace
+
+DemWorker::DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
+                     const std::string& logger)
+    : publisher_(publisher),
+      diagnostics_(diagnostics),
+      logger_(logger),
+      options_(options),
+      snapshot_(std::make_shared<MapSnapshot>()) {}
+
+DemWorker::~DemWorker() { stop(); }
+
+void DemWorker::start() {
+  if (!thread_.joinable()) thread_ = std::thread(&DemWorker::run, this);
+}
+
+void DemWorker::stop() {
+  slot_.close();
+  if (thread_.joinable()) thread_.join();
+}
+
+bool DemWorker::submit(StereoFrame frame) { return slot_.put(std::move(frame)).has_value(); }
+
+void DemWorker::requestReset(const std::string& why, bool warning) {
+  {
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    ++reset_requested_;
+    reset_reason_ = why;
+    snapshot_ = std::make_shared<MapSnapshot>();
+  }
+  diagnostics_.restarted(why, warning);
+  slot_.wake();
+}
+
+bool DemWorker::setEstimatorOptions(const IncrementalEstimatorOptions& options) {
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  options_ = options;
+  options_changed_ = true;
+  if (!initialized_) slot_.wake();  // recreated before the next frame
+  return !initialized_;
+}
+
+bool DemWorker::optionsPending() const {
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  return options_changed_ && initialized_;
+}
+
+std::shared_ptr<const MapSnapshot> DemWorker::snapshot() const {
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  return snapshot_;
+}
+
+void DemWorker::run() {
+  StereoFrame frame;
+  for (;;) {
+    const LatestFrameSlot<StereoFrame>::Taken t = slot_.take(&frame);
+    if (t == LatestFrameSlot<StereoFrame>::Taken::kClosed) break;
+    applyReset();
+    if (t == LatestFrameSlot<StereoFrame>::Taken::kItem) {
+      process(frame);
+      frame = StereoFrame();  // release the image messages
+    }
+  }
+}
+
+void DemWorker::applyReset() {
+  IncrementalEstimatorOptions options;
+  bool reset = false, recreate = false;
+  {
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    reset = reset_requested_ != reset_applied_;
+    reset_applied_ = reset_requested_;
+    // new options apply when the estimator is recreated: at a reset, or while nothing is mapped
+    recreate = estimator_ && options_changed_ && (reset || !initialized_);
+    if (recreate) {
+      options = options_;
+      options_changed_ = false;
+    }
+    if (reset) initialized_ = false;
+  }
+  if (recreate) {
+    estimator_ = std::make_unique<IncrementalEstimator>(estimator_->rig(), options);
+  } else if (reset && estimator_) {
+    estimator_->reset();
+  }
+  if (reset) {
+    publisher_.reset();
+    trajectory_xy_.clear();
+    fused_frames_ = 0;
+    last_processed_stamp_s_ = -1.0;
+  }
+}
+
+void DemWorker::process(StereoFrame& f) {
+  const ros::WallTime start = ros::WallTime::now();
+  long generation = 0;
+  {
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    generation = reset_requested_;
+  }
+  if (!estimator_ || !sameRig(estimator_->rig(), f.rig)) {
+    if (estimator_) {
+      diagnostics_.restarted("the camera calibration changed (camera_info P or size): starting a new map", true);
+      publisher_.reset();
+      trajectory_xy_.clear();
+      fused_frames_ = 0;
+      last_processed_stamp_s_ = -1.0;
+    }
+    IncrementalEstimatorOptions options;
+    {
+      std::lock_guard<std::mutex> lock(control_mutex_);
+      options = options_;
+      options_changed_ = false;
+      initialized_ = false;
+      snapshot_ = std::make_shared<MapSnapshot>();
+    }
+    try {
+      estimator_ = std::make_unique<IncrementalEstimator>(f.rig, options);
+    } catch (const std::exception& e) {
+      estimator_.reset();
+      diagnostics_.skipped(std::string("cannot start the estimator: ") + e.what());
+      return;
+    }
+    const StereoRig& r = f.rig;
+    ROS_INFO_NAMED(logger_, "stereo rig from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f px, baseline %.4f m",
+                   r.width, r.height, r.fx, r.fy, r.cx, r.cy, r.baseline_m);
+  }
+  const double stamp_s = f.stamp.toSec();
+  FrameResult fr;
+  try {
+    fr = estimator_->processFrame(f.left, f.right, stamp_s, f.order);
+  } catch (const std::exception& e) {
+    diagnostics_.skipped(std::string("estimator: ") + e.what() + " (frame skipped)");
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    initialized_ = estimator_->initialized();
+    if (reset_requested_ != generation) return;  // a reset came meanwhile: this frame belongs to the old map
+  }
+  if (fr.status == FrameStatus::kRejectedInput) {
+    diagnostics_.rejected("images rejected by the estimator: " + fr.message + " (frame skipped)");
+    return;
+  }
+  if (fr.status == FrameStatus::kFailed) {
+    diagnostics_.problem("tracking failed: " + fr.message + " (pose predicted, map unchanged)", false);
+  }
+  DemDiagnostics::FrameRecord record;
+  record.status = fr.status;
+  record.processing_ms = fr.time_ms;
+  record.wait_ms = (start - f.received).toSec() * 1e3;
+  if (last_processed_stamp_s_ >= 0.0) record.stamp_gap_s = stamp_s - last_processed_stamp_s_;
+  last_processed_stamp_s_ = stamp_s;
+  const ElevationMap& map = estimator_->map();
+  if (estimator_->initialized()) {
+    trajectory_xy_.push_back(fr.ground_T_camera.translation().head<2>());
+    record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame);
+    if (fr.status != FrameStatus::kFailed) ++fused_frames_;
+    auto snap = std::make_shared<MapSnapshot>();
+    snap->map = std::make_shared<const ElevationMap>(map);
+    snap->ground_T_camera0 = estimator_->groundTCamera0();
+    snap->trajectory_xy = trajectory_xy_;
+    snap->stamp = f.stamp;
+    snap->frame_count = fused_frames_;
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    if (reset_requested_ == generation) snapshot_ = snap;
+  }
+  record.latency_ms = (ros::Time::now() - f.stamp).toSec() * 1e3;
+  record.map_tiles = map.tileCount();
+  record.map_memory_mb = map.memoryBytes() / 1048576.0;
+  diagnostics_.processed(record);
+  ROS_DEBUG_NAMED(logger_, "frame %.3f: %s in %.1f ms, waited %.1f ms, %.1f ms in all", stamp_s, toString(fr.status),
+                  fr.time_ms, record.wait_ms, (ros::WallTime::now() - start).toSec() * 1e3);
+}
+
+}  // namespace stereo_ground_dem
