@@ -19,7 +19,9 @@
 
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/MotionPredictor.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
+#include "stereo_ground_dem/TrackingCheck.hpp"
 
 namespace stereo_ground_dem {
 
@@ -33,11 +35,7 @@ struct IncrementalEstimatorOptions {
   int iterations_per_level = 5;           ///< Gauss-Newton iterations per coarse level (>= 2)
   int fine_iterations = 3;                ///< ... at pyramid levels 0 and 1
   double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
-  double max_speed_m_per_s = 50.0;        ///< faster estimated motion is implausible
-  double max_turn_rate_rad_per_s = 1.5;   ///< faster rotation is implausible
-  double max_height_jump_m = 0.4;         ///< a well-known vertex moving this far is implausible ...
-  double max_jump_fraction = 0.15;        ///< ... for more than this fraction of them
-  double max_outside_fraction = 0.6;      ///< more samples warped outside the images: failure
+  TrackingCheckOptions check;             ///< plausibility tests of a tracked frame
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
@@ -54,9 +52,6 @@ struct IncrementalEstimatorOptions {
   /// frames (0: only on the first ones); about 5 ms each.
   int rectification_startup_pairs = 5;
   int rectification_check_period_frames = 10;
-  double max_residual_ratio = 3.0;        ///< median residual above ratio * the usual level ...
-  double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
-  int min_samples = 500;                  ///< fewer pixel samples in the final level: failure
   double max_init_std_m = 0.05;           ///< map heights less certain are re-extended, not trusted [m]
   /// When the velocity is unknown (first tracked frame, after a failure), translations along the
   /// optical axis from motion_search_min_m to motion_search_max_m (per nominal frame period) are
@@ -66,6 +61,22 @@ struct IncrementalEstimatorOptions {
   double motion_search_min_m = -1.0;
   double motion_search_max_m = 3.0;
   double motion_search_step_m = 0.2;
+  double motion_search_max_reverse_m = 1.0;  ///< never more backwards, whatever the stamp gap [m]
+  /// Attitude step of the rotation hypotheses tried when the constant-velocity start does not
+  /// align as well as usual (MotionPredictor) [rad].
+  double rotation_hypothesis_rad = 0.026;
+  /// A pre-alignment start is good enough when its cost per sample is below this times the usual
+  /// one (running over good frames); otherwise the next hypothesis is tried.
+  double hypothesis_accept_ratio = 1.3;
+  /// ... and when the previous image's median residual is below ratio * the stereo partner's +
+  /// margin (the stereo pair does not depend on the motion: a reference without history).
+  double temporal_residual_ratio = 1.5;
+  double temporal_residual_margin_grey = 1.0;
+  /// Without a velocity, this many of the best-scoring search poses are aligned.
+  int search_candidates = 3;
+  /// 0: none; 1: the stereo-only finest level ends with an almost undamped step
+  /// (SurfaceAlignerOptions::final_undamped_step); 2: every fine level.
+  int final_undamped_step = 1;
   // input sanity (grey levels, 8-bit units)
   double min_mean_grey = 4.0;             ///< darker images are rejected
   double max_saturated_fraction = 0.5;    ///< more saturated pixels: rejected
@@ -100,6 +111,7 @@ struct FrameResult {
   Matrix6d motion_information = Matrix6d::Zero();  ///< [1/m^2, 1/rad^2], twist (v, w) in camera
   std::vector<AlignmentReport> reports;  ///< per mesh level, coarse to fine
   double obstacle_ms = 0.0;              ///< occlusion reasoning
+  double prealign_cost = 0.0;            ///< motion-only pre-alignment cost per sample (best start)
   int obstacle_pixels = 0;               ///< at the obstacle test level
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).
@@ -149,9 +161,8 @@ class IncrementalEstimator {
                std::unique_ptr<ImagePyramid>& pr, const std::vector<PhotometricParams>& photometric);
   bool rectificationDue(int frame_index) const;
   void addPairCheck(const StereoPairCheck& check);
-  Eigen::Isometry3d searchForwardMotion(const ImagePyramid& left, const GroundGrid& window,
-                                        const Eigen::VectorXd& heights, const Eigen::Isometry3d& predicted,
-                                        double dt) const;
+  std::vector<Eigen::Isometry3d> rankedSearch(const ImagePyramid& left, double stamp_s) const;
+  MotionPredictorOptions predictorOptions() const;
 
   StereoRig rig_;
   IncrementalEstimatorOptions options_;
@@ -161,10 +172,10 @@ class IncrementalEstimator {
   bool initialized_ = false;
   Eigen::Isometry3d ground_T_camera0_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d ground_T_camera_ = Eigen::Isometry3d::Identity();  ///< last good frame
-  Vector6d velocity_ = Vector6d::Zero();  ///< twist per second, camera frame (left-multiplied)
-  bool velocity_known_ = false;
+  MotionPredictor predictor_;    ///< last good pose and stamp, velocity
+  TrackingCheck check_;
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
-  double last_good_stamp_ = 0.0;
+  double prealign_level_ = 0.0;  ///< running pre-alignment cost per sample of good frames
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
   std::vector<cv::Mat> prev_obstacles_;  ///< obstacle pixels of the previous left image, per level
   cv::Mat last_left_level0_;   ///< for the frozen-frame test

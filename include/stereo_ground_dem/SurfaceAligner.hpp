@@ -55,6 +55,11 @@ struct SurfaceAlignerOptions {
   double saturated_level_grey = 253.5;     ///< values at or above: not used
   double outside_penalty_factor = 3.0;     ///< a pixel warped outside its target costs rho(factor * scale)
   bool estimate_motion = false;            ///< 6-DoF twist of the reference camera
+  /// After the iterations, one more step with the update constraint scaled by
+  /// final_step_damping_scale: the damping then shapes the path, not the result (far vertices,
+  /// where data is weak, otherwise stay near their starting heights).
+  bool final_undamped_step = false;
+  double final_step_damping_scale = 0.01;
   int num_threads = 2;                     ///< threads for the pixel loop
   /// The height block of the normal equations is solved by conjugate gradients with a Jacobi
   /// preconditioner (measured on a KITTI frame, 4580 heights: 0.4 ms to 1e-4 relative error
@@ -136,6 +141,7 @@ struct AlignmentReport {
   int valid_pixels = 0;              ///< pixel-pair samples in the data term at the end
   int outside_pixels = 0;            ///< samples warped outside their target image
   double median_abs_residual_grey = 0.0;
+  std::vector<double> target_median_abs_residual_grey;  ///< the same per target, in problem order
   int working_triangles = 0;
   int active_vertices = 0;
   int evaluations = 0;               ///< rasterize + residual passes

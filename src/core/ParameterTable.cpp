@@ -78,10 +78,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("min_ground_pixels", &s.min_ground_pixels, "vertices with fewer ground pixels are not observed", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   // failure handling and input checks
-  d("max_speed_m_per_s", &e.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
-  d("max_turn_rate_rad_per_s", &e.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);
-  d("max_height_jump_m", &e.max_height_jump_m, "well-known vertices moving this far are implausible [m]", true);
-  d("max_jump_fraction", &e.max_jump_fraction, "... for more than this fraction of them", true);
+  d("max_speed_m_per_s", &e.check.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
+  d("max_turn_rate_rad_per_s", &e.check.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);
+  d("max_height_jump_m", &e.check.max_height_jump_m, "well-known vertices moving this far are implausible [m]", true);
+  d("max_jump_fraction", &e.check.max_jump_fraction, "... for more than this fraction of them", true);
   i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
   i("prealign_level", &e.prealign_level, "pyramid level of the motion-only pre-alignment", true);
   b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
@@ -89,9 +89,18 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
     "temporal pairs skip samples on the previous frame's obstacle pixels", true);
   b("use_cross_temporal_pair", &e.use_cross_temporal_pair,
     "also align with the previous right image (ties motion to the stereo calibration)", true);
+  d("motion_search_min_m", &e.motion_search_min_m, "search without a velocity: shortest step per frame period [m]", true);
+  d("motion_search_max_m", &e.motion_search_max_m, "... longest step per frame period [m]", true);
+  d("motion_search_step_m", &e.motion_search_step_m, "... step of the search per frame period [m]", true);
+  d("motion_search_max_reverse_m", &e.motion_search_max_reverse_m, "... never more backwards than this [m]", true);
+  d("rotation_hypothesis_rad", &e.rotation_hypothesis_rad, "attitude step of the rotation hypotheses [rad]", true);
+  d("hypothesis_accept_ratio", &e.hypothesis_accept_ratio,
+    "a start is good enough below this times the usual pre-alignment cost", true);
+  i("final_undamped_step", &e.final_undamped_step, "almost undamped last step: 0 none, 1 finest level, 2 fine levels", true);
+  i("search_candidates", &e.search_candidates, "search poses aligned when the velocity is unknown", true);
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
-  d("max_residual_ratio", &e.max_residual_ratio, "median residual above this times the usual: failure", true);
-  d("max_residual_increase_grey", &e.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
+  d("max_residual_ratio", &e.check.max_residual_ratio, "median residual above this times the usual: failure", true);
+  d("max_residual_increase_grey", &e.check.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
   d("nominal_frame_period_s", &e.nominal_frame_period_s, "frame period used when stamps do not increase [s]");
   d("min_mean_grey", &e.min_mean_grey, "darker images are rejected [grey]", true);
   d("max_saturated_fraction", &e.max_saturated_fraction, "images with more saturated pixels are rejected", true);

@@ -86,6 +86,7 @@ struct Chunk {
   std::vector<int> tri_pixels;
   std::vector<int> tri_excluded;  ///< pixels of the triangle masked out as obstacles
   std::vector<float> abs_residuals;
+  std::vector<std::vector<float>> pair_abs_residuals;  ///< [pair] the same samples, per pair
   void reset(const std::vector<int>& strides, size_t nt) {
     tri.resize(strides.size());
     for (size_t j = 0; j < strides.size(); ++j) tri[j].assign(static_cast<size_t>(strides[j]) * nt, 0.0);
@@ -93,6 +94,7 @@ struct Chunk {
     tri_pixels.assign(nt, 0);
     tri_excluded.assign(nt, 0);
     abs_residuals.clear();
+    pair_abs_residuals.assign(strides.size(), {});
   }
 };
 
@@ -205,6 +207,7 @@ class LevelSolver {
   }
 
   int activeCount() const { return static_cast<int>(active_.size()); }
+  void setDampingScale(double s) { damping_scale_ = s; }
   int workingTriangles() const { return static_cast<int>(tris_.size()); }
   bool empty() const { return tris_.empty(); }
 
@@ -359,6 +362,10 @@ class LevelSolver {
         sum.tri_excluded[i] += o.tri_excluded[i];
       }
       sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
+      for (size_t j = 0; j < np; ++j) {
+        sum.pair_abs_residuals[j].insert(sum.pair_abs_residuals[j].end(), o.pair_abs_residuals[j].begin(),
+                                         o.pair_abs_residuals[j].end());
+      }
     }
     ev->data_cost = 0.0;
     for (const auto& pa : sum.pair) ev->data_cost += data_scale_ * pa.cost;
@@ -570,7 +577,10 @@ class LevelSolver {
       const float w = robust ? 1.0f / (1.0f + e * e * inv_c2) : 1.0f;
       cost += rho(e);
       ++valid;
-      if ((valid & 7) == 0) ch->abs_residuals.push_back(std::abs(e));
+      if ((valid & 7) == 0) {
+        ch->abs_residuals.push_back(std::abs(e));
+        ch->pair_abs_residuals[j].push_back(std::abs(e));
+      }
       if (slot != run_slot) {
         flush();
         run_slot = slot;
@@ -826,13 +836,13 @@ class LevelSolver {
     Eigen::MatrixXd hcg;
     const SpMat* hcc = nullptr;
     if (identity_basis_) {
-      for (int c = 0; c < control_count_; ++c) values[diag_index_[static_cast<size_t>(c)]] += mu_[c];
+      for (int c = 0; c < control_count_; ++c) values[diag_index_[static_cast<size_t>(c)]] += damping_scale_ * mu_[c];
       hcc = &hzz;
       gc = gz;
       hcg = hzg;
     } else {
       hcc_ = basis_t_ * hzz * basis_;
-      for (int c = 0; c < control_count_; ++c) hcc_.coeffRef(c, c) += mu_[c];
+      for (int c = 0; c < control_count_; ++c) hcc_.coeffRef(c, c) += damping_scale_ * mu_[c];
       hcc = &hcc_;
       gc = basis_t_ * gz;
       hcg = basis_t_ * hzg;
@@ -1104,6 +1114,7 @@ class LevelSolver {
   int control_count_ = 0;
   SpMat basis_, basis_t_;     ///< active rows x compact controls
   Eigen::VectorXd mu_;
+  double damping_scale_ = 1.0;  ///< scales mu_ (the final undamped step uses a small share)
   struct Stencil {
     std::array<int, 3> v{};    ///< compact indices of the three collinear vertices
     double w = 0.0;            ///< sqrt(lambda) / h-scaled weight of the second difference
@@ -1216,6 +1227,32 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
       break;
     }
   }
+  // The update constraint damps every step by mu (most where data is weak, far away): with a few
+  // iterations, far vertices stay near their starting heights. A last step with almost no
+  // damping moves them to where data, smoothness and prior put them.
+  if (options_.final_undamped_step && problem.estimate_heights) {
+    solver.setDampingScale(options_.final_step_damping_scale);
+    t0 = Clock::now();
+    const auto step = solver.solve(state, *ev, &report);
+    report.solve_ms += ms(t0, Clock::now());
+    if (step.ok) {
+      double alpha = 1.0;
+      for (int h = 0; h <= options_.max_step_halvings; ++h, alpha *= 0.5) {
+        solver.apply(step, alpha, state, &trial);
+        t0 = Clock::now();
+        solver.evaluate(trial, trial_ev);
+        report.evaluate_ms += ms(t0, Clock::now());
+        report.evaluations++;
+        if (trial_ev->total() <= ev->total() * (1.0 + 1e-9)) {
+          state = trial;
+          std::swap(ev, trial_ev);
+          report.accepted_steps++;
+          break;
+        }
+      }
+    }
+    solver.setDampingScale(1.0);
+  }
   if (options_.estimate_motion && problem.want_motion_information) {
     t0 = Clock::now();
     AlignmentReport tmp;
@@ -1237,6 +1274,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
     report.outside_pixels += pa.outside;
   }
   report.median_abs_residual_grey = median(ev->sums().abs_residuals);
+  for (const auto& r : ev->sums().pair_abs_residuals) report.target_median_abs_residual_grey.push_back(median(r));
   return report;
 }
 

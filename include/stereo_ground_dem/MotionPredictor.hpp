@@ -1,0 +1,82 @@
+#pragma once
+/// \file MotionPredictor.hpp
+/// Where the camera of the next frame probably is: the starting poses of the incremental mode's
+/// motion-only pre-alignment (IncrementalEstimator, METHOD.md section 6).
+///
+/// With a known velocity: the constant-velocity prediction (scaled by the stamp gap, so dropped
+/// frames are bridged), then hypotheses for what a constant velocity does not predict: the same
+/// translation without the rotation rate (a bump's pitch rate ends), attitude steps of
+/// `rotation_step_rad` and twice that about each camera axis (bouncing over rough ground: 2-3
+/// degrees between frames), and half / double the translation (braking, accelerating). The
+/// tracker tries them in order until one aligns about as well as the usual frame.
+///
+/// Without one (the first tracked frame, after a failure): a grid of forward translations along
+/// the optical axis combined with yaw rates (a vehicle already turning on its first frame); the
+/// tracker scores each by its photometric cost alone and aligns from the best few.
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/Se3.hpp"
+
+namespace stereo_ground_dem {
+
+struct MotionPredictorOptions {
+  double nominal_frame_period_s = 0.1;  ///< used when stamps do not increase [s]
+  /// The search without a velocity: translations along the optical axis from search_min_m to
+  /// search_max_m per nominal frame period, scaled by the stamp gap [m] ...
+  double search_min_m = -1.0;
+  double search_max_m = 3.0;
+  /// ... in steps of search_step_m per period, but never coarser than search_max_step_m [m] ...
+  double search_step_m = 0.2;
+  double search_max_step_m = 0.6;
+  /// ... and never more than this backwards whatever the gap (vehicles rarely reverse) [m] ...
+  double search_max_reverse_m = 1.0;
+  /// ... combined with these yaw rates per nominal period (positive turns left) [rad].
+  std::vector<double> search_yaw_rad = {0.0, 0.025, -0.025, 0.05, -0.05};
+  double rotation_step_rad = 0.026;     ///< attitude step of the rotation hypotheses (1.5 deg)
+
+  bool isValid(std::string* why) const;
+};
+
+class MotionPredictor {
+ public:
+  explicit MotionPredictor(const MotionPredictorOptions& options = MotionPredictorOptions());
+
+  /// Forgets everything.
+  void reset();
+  /// A pose whose velocity is unknown (initialization, relocalization).
+  void setPose(const Eigen::Isometry3d& camera_T_ground, double stamp_s);
+  /// A tracked frame: the velocity becomes the step from the last pose over the stamp gap.
+  void update(const Eigen::Isometry3d& camera_T_ground, double stamp_s);
+  /// After a failure: the velocity is no longer trusted (the last pose stays).
+  void forgetVelocity() { velocity_known_ = false; }
+
+  bool velocityKnown() const { return velocity_known_; }
+  const Vector6d& velocity() const { return velocity_; }  ///< twist per second, camera frame
+  const Eigen::Isometry3d& lastPose() const { return last_camera_T_ground_; }
+  double lastStamp() const { return last_stamp_s_; }
+  /// The time since the last pose, or the nominal period when stamps do not increase [s].
+  double gap(double stamp_s) const;
+
+  /// The constant-velocity prediction (the last pose when the velocity is unknown).
+  Eigen::Isometry3d predict(double stamp_s) const;
+  /// Starting poses with a known velocity, most likely first (see the file comment).
+  std::vector<Eigen::Isometry3d> hypotheses(double stamp_s) const;
+  /// `camera_T_ground` turned by one and two rotation steps about each camera axis (12 poses).
+  std::vector<Eigen::Isometry3d> attitudeSteps(const Eigen::Isometry3d& camera_T_ground) const;
+  /// The search grid without a velocity (see the file comment).
+  std::vector<Eigen::Isometry3d> searchGrid(double stamp_s) const;
+
+  const MotionPredictorOptions& options() const { return options_; }
+
+ private:
+  MotionPredictorOptions options_;
+  Eigen::Isometry3d last_camera_T_ground_ = Eigen::Isometry3d::Identity();
+  double last_stamp_s_ = 0.0;
+  Vector6d velocity_ = Vector6d::Zero();
+  bool velocity_known_ = false;
+};
+
+}  // namespace stereo_ground_dem
