@@ -1,0 +1,44 @@
+#pragma once
+/// \file RayCaster.hpp
+/// Exact ray casting into a SyntheticScene: the terrain (TerrainModel, marched with the safe steps
+/// its slope and curvature bounds allow, vertical faces on feature lines hit exactly) and the
+/// obstacles (boxes and poles, placed at the time of the ray), plus the obstacle footprints.
+
+#include <Eigen/Core>
+#include <memory>
+
+#include "stereo_ground_dem/sim/SceneOptions.hpp"
+#include "stereo_ground_dem/sim/SurfaceHit.hpp"
+#include "stereo_ground_dem/sim/TerrainModel.hpp"
+
+namespace stereo_ground_dem::sim {
+
+class RayCaster {
+ public:
+  /// `options` must be valid; `terrain` is the options' terrain.
+  RayCaster(std::shared_ptr<const TerrainModel> terrain, const SceneOptions& options);
+
+  const TerrainModel& terrain() const { return *terrain_; }
+
+  /// The nearest surface (terrain or obstacle) hit by the ray o + t d, 0 < t <= t_max (d need
+  /// not be unit). Exact up to ~1e-6 m along z for the terrain, to rounding for obstacles.
+  SurfaceHit intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
+                       double time_s = 0.0) const;
+  /// The nearest terrain hit only.
+  SurfaceHit intersectTerrain(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                              double t_max) const;
+  /// The nearest obstacle hit only (obstacles at time_s).
+  SurfaceHit intersectObstacles(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
+                                double time_s) const;
+
+  /// Object id of an obstacle whose footprint contains (x, y) at time_s, 0 if none.
+  int obstacleIdAt(double x, double y, double time_s = 0.0) const;
+  /// Terrain height, or the top of an obstacle whose footprint contains (x, y) at time_s.
+  double surfaceHeight(double x, double y, double time_s = 0.0) const;
+
+ private:
+  std::shared_ptr<const TerrainModel> terrain_;
+  SceneOptions options_;
+};
+
+}  // namespace stereo_ground_dem::sim
