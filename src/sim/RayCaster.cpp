@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <utility>
+#include <vector>
 
 namespace stereo_ground_dem::sim {
 
@@ -13,6 +14,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kObstacleBuryM = 1.0;     // obstacles reach this far below the terrain
 constexpr double kTerrainHitEpsM = 1e-7;   // a ray closer than this above the terrain hits it
 constexpr int kMaxMarchSteps = 20000;
+constexpr int kGridMinObstacles = 16;      // more static obstacles than this: ObstacleGrid
+constexpr double kGridCellM = 4.0;
 
 constexpr int kTerrainTop = SurfaceHit::kTerrainTop;
 constexpr int kTerrainFaceX = SurfaceHit::kTerrainFaceX;
@@ -24,27 +27,72 @@ constexpr int kPoleTop = SurfaceHit::kPoleTop;
 }  // namespace
 
 RayCaster::RayCaster(std::shared_ptr<const TerrainModel> terrain, const SceneOptions& options)
-    : terrain_(std::move(terrain)), options_(options) {}
+    : terrain_(std::move(terrain)), options_(options) {
+  int statics = static_cast<int>(options_.poles.size());
+  double top = 0.0;
+  for (size_t i = 0; i < options_.boxes.size(); ++i) {
+    const BoxObstacle& b = options_.boxes[i];
+    BoxCache bc;
+    bc.moving = b.velocity_xy.x() != 0.0 || b.velocity_xy.y() != 0.0;
+    bc.cos_yaw = std::cos(b.yaw_rad);
+    bc.sin_yaw = std::sin(b.yaw_rad);
+    bc.radius = 0.5 * std::hypot(b.length_m, b.width_m) + 1e-9;
+    bc.terrain_z = terrain_->height(b.center_xy.x(), b.center_xy.y());
+    box_cache_.push_back(bc);
+    if (bc.moving) {
+      moving_boxes_.push_back(static_cast<int>(i));
+    } else {
+      ++statics;
+    }
+    top = std::max(top, b.height_m);
+  }
+  for (const auto& p : options_.poles) {
+    top = std::max(top, p.height_m);
+    pole_terrain_z_.push_back(terrain_->height(p.xy.x(), p.xy.y()));
+  }
+  obstacle_z_lo_ = terrain_->minHeight() - kObstacleBuryM - 1e-6;
+  obstacle_z_hi_ = terrain_->maxHeight() + top + 1e-6;
+  if (statics > kGridMinObstacles) grid_ = ObstacleGrid(options_, kGridCellM);
+}
 
 int RayCaster::obstacleIdAt(double x, double y, double time_s) const {
   const auto& o = options_;
-  for (size_t i = 0; i < o.boxes.size(); ++i) {
-    const BoxObstacle& b = o.boxes[i];
-    const Eigen::Vector2d c = b.centerAt(time_s);
-    const double cy = std::cos(b.yaw_rad), sy = std::sin(b.yaw_rad);
-    const double lx = cy * (x - c.x()) + sy * (y - c.y());
-    const double ly = -sy * (x - c.x()) + cy * (y - c.y());
-    if (std::abs(lx) <= 0.5 * b.length_m && std::abs(ly) <= 0.5 * b.width_m) {
-      return static_cast<int>(i) + 1;
+  if (!grid_.empty()) {
+    thread_local std::vector<int> ids;
+    ids.assign(moving_boxes_.begin(), moving_boxes_.end());
+    grid_.collectAt(x, y, &ids);
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    for (int id : ids) {
+      if (insideFootprint(id, x, y, time_s)) return id + 1;
     }
+    return 0;
+  }
+  for (size_t i = 0; i < o.boxes.size(); ++i) {
+    if (insideFootprint(static_cast<int>(i), x, y, time_s)) return static_cast<int>(i) + 1;
   }
   for (size_t j = 0; j < o.poles.size(); ++j) {
-    const PoleObstacle& p = o.poles[j];
-    if ((Eigen::Vector2d(x, y) - p.xy).squaredNorm() <= p.radius_m * p.radius_m) {
+    if (insideFootprint(static_cast<int>(o.boxes.size() + j), x, y, time_s)) {
       return static_cast<int>(o.boxes.size() + j) + 1;
     }
   }
   return 0;
+}
+
+bool RayCaster::insideFootprint(int index, double x, double y, double time_s) const {
+  const auto& o = options_;
+  const auto nb = static_cast<int>(o.boxes.size());
+  if (index < nb) {
+    const BoxObstacle& b = o.boxes[static_cast<size_t>(index)];
+    const Eigen::Vector2d c = b.centerAt(time_s);
+    const BoxCache& bc = box_cache_[static_cast<size_t>(index)];
+    const double cy = bc.cos_yaw, sy = bc.sin_yaw;
+    const double lx = cy * (x - c.x()) + sy * (y - c.y());
+    const double ly = -sy * (x - c.x()) + cy * (y - c.y());
+    return std::abs(lx) <= 0.5 * b.length_m && std::abs(ly) <= 0.5 * b.width_m;
+  }
+  const PoleObstacle& p = o.poles[static_cast<size_t>(index - nb)];
+  return (Eigen::Vector2d(x, y) - p.xy).squaredNorm() <= p.radius_m * p.radius_m;
 }
 
 double RayCaster::surfaceHeight(double x, double y, double time_s) const {
@@ -62,6 +110,12 @@ double RayCaster::surfaceHeight(double x, double y, double time_s) const {
 
 SurfaceHit RayCaster::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
                                 double t_max, double time_s) const {
+  if (!grid_.empty()) {
+    // Many obstacles: the terrain first, so that the obstacles' trace stops at its hit.
+    const SurfaceHit terrain = intersectTerrain(o, d, t_max);
+    const SurfaceHit obstacle = intersectObstacles(o, d, terrain.hit() ? terrain.t : t_max, time_s);
+    return obstacle.hit() ? obstacle : terrain;
+  }
   SurfaceHit best = intersectObstacles(o, d, t_max, time_s);
   const SurfaceHit terrain = intersectTerrain(o, d, best.hit() ? best.t : t_max);
   if (terrain.hit() && (!best.hit() || terrain.t < best.t)) best = terrain;
@@ -85,7 +139,7 @@ SurfaceHit RayCaster::intersectTerrain(const Eigen::Vector3d& o, const Eigen::Ve
   if (!(t_lo < t_hi)) return none;
 
   // Breakpoints: where the ray crosses a feature line, with the line's axis (-1: none), sorted.
-  constexpr int kMaxBreakpoints = 48;
+  constexpr int kMaxBreakpoints = 160;  // more than the feature lines SceneOptions allows
   double bp_t[kMaxBreakpoints];
   int bp_axis[kMaxBreakpoints];
   int nbp = 0;
@@ -208,12 +262,13 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
     const double ex = cx - t * d.x(), ey = cy - t * d.y();
     return ex * ex + ey * ey <= radius * radius;
   };
-  for (size_t i = 0; i < so.boxes.size(); ++i) {
+  auto testBox = [&](size_t i) {
     const BoxObstacle& bx = so.boxes[i];
-    const Eigen::Vector2d c = bx.centerAt(time_s);
-    if (!nearTrace(c, 0.5 * std::hypot(bx.length_m, bx.width_m) + 1e-9)) continue;
-    const double zb = terrain_->height(c.x(), c.y());
-    const double cy = std::cos(bx.yaw_rad), sy = std::sin(bx.yaw_rad);
+    const BoxCache& bc = box_cache_[i];
+    const Eigen::Vector2d c = bc.moving ? bx.centerAt(time_s) : bx.center_xy;
+    if (!nearTrace(c, bc.radius)) return;
+    const double zb = bc.moving ? terrain_->height(c.x(), c.y()) : bc.terrain_z;
+    const double cy = bc.cos_yaw, sy = bc.sin_yaw;
     const Eigen::Vector3d lo(cy * (o.x() - c.x()) + sy * (o.y() - c.y()),
                              -sy * (o.x() - c.x()) + cy * (o.y() - c.y()), o.z() - zb);
     const Eigen::Vector3d ld(cy * d.x() + sy * d.y(), -sy * d.x() + cy * d.y(), d.z());
@@ -243,7 +298,7 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
       t_far = std::min(t_far, t1);
       if (t_near > t_far) miss = true;
     }
-    if (miss || near_axis < 0 || !(t_near > 0.0) || !(t_near < t_best)) continue;
+    if (miss || near_axis < 0 || !(t_near > 0.0) || !(t_near < t_best)) return;
     t_best = t_near;
     best.t = t_near;
     best.point = o + t_near * d;
@@ -253,16 +308,16 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
     n_local[near_axis] = near_positive ? 1.0 : -1.0;
     best.normal = Eigen::Vector3d(cy * n_local.x() - sy * n_local.y(),
                                   sy * n_local.x() + cy * n_local.y(), n_local.z());
-  }
-  for (size_t j = 0; j < so.poles.size(); ++j) {
+  };
+  auto testPole = [&](size_t j) {
     const PoleObstacle& pl = so.poles[j];
-    if (!nearTrace(pl.xy, pl.radius_m + 1e-9)) continue;
-    const double zb = terrain_->height(pl.xy.x(), pl.xy.y());
+    if (!nearTrace(pl.xy, pl.radius_m + 1e-9)) return;
+    const double zb = pole_terrain_z_[j];
     const double z0 = zb - kObstacleBuryM, z1 = zb + pl.height_m;
     const double px = o.x() - pl.xy.x(), py = o.y() - pl.xy.y();
     const double r2 = pl.radius_m * pl.radius_m;
     const int id = static_cast<int>(so.boxes.size() + j) + 1;
-    if (px * px + py * py <= r2) continue;  // origin inside the pole's footprint: ignore
+    if (px * px + py * py <= r2) return;  // origin inside the pole's footprint: ignore
     const double qa = d.x() * d.x() + d.y() * d.y();
     if (qa > 0.0) {
       const double qb = px * d.x() + py * d.y();
@@ -292,6 +347,34 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
         best.surface = kPoleTop;
         best.normal = Eigen::Vector3d::UnitZ();
       }
+    }
+  };
+  if (grid_.empty()) {
+    for (size_t i = 0; i < so.boxes.size(); ++i) testBox(i);
+    for (size_t j = 0; j < so.poles.size(); ++j) testPole(j);
+    return best;
+  }
+  // Many obstacles: the moving boxes and the static obstacles near the ray's trace inside the
+  // slab that holds every obstacle, in index order.
+  double ta = 0.0, tb = t_max;
+  if (d.z() == 0.0) {
+    if (o.z() < obstacle_z_lo_ || o.z() > obstacle_z_hi_) tb = -1.0;
+  } else {
+    double u0 = (obstacle_z_lo_ - o.z()) / d.z(), u1 = (obstacle_z_hi_ - o.z()) / d.z();
+    if (u0 > u1) std::swap(u0, u1);
+    ta = std::max(ta, u0);
+    tb = std::min(tb, u1);
+  }
+  thread_local std::vector<int> ids;
+  ids.assign(moving_boxes_.begin(), moving_boxes_.end());
+  if (ta <= tb) grid_.collectAlongRay(o, d, ta, tb, &ids);
+  std::sort(ids.begin(), ids.end());
+  const auto nb = static_cast<int>(so.boxes.size());
+  for (int id : ids) {
+    if (id < nb) {
+      testBox(static_cast<size_t>(id));
+    } else {
+      testPole(static_cast<size_t>(id - nb));
     }
   }
   return best;

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace stereo_ground_dem::sim {
 
@@ -113,10 +114,11 @@ int bandLimitedOctaves(const TextureNoise& noise, double s1, double s2, const Fo
   return count;
 }
 
-double materialAlbedo(MaterialId m, const std::array<double, kOctaves>& n, int count) {
-  const Material& mat = kMaterials[m];
-  double a = mat.mean;
-  for (int k = 0; k < count; ++k) a += mat.amp[static_cast<size_t>(k)] * n[static_cast<size_t>(k)];
+// `amp`: the material's octave amplitudes (kMaterials' scaled by the texture contrast).
+double materialAlbedo(MaterialId m, const double* amp, const std::array<double, kOctaves>& n,
+                      int count) {
+  double a = kMaterials[m].mean;
+  for (int k = 0; k < count; ++k) a += amp[k] * n[static_cast<size_t>(k)];
   return a;
 }
 
@@ -130,15 +132,30 @@ double wobble(const TextureNoise& noise, int octave, double x, double y, double 
 
 }  // namespace
 
-SurfaceShader::SurfaceShader(const SceneOptions& options)
+SurfaceShader::SurfaceShader(const SceneOptions& options, std::shared_ptr<const RayCaster> caster)
     : options_(options),
+      path_(options.road_path),
+      caster_(std::move(caster)),
       ground_noise_(options.seed, kCoarsestWavelengthM, kOctaves),
       detail_noise_(TextureNoise::mix64(options.seed ^ 0xD1B54A32D192ED03ULL), 8.0, 6) {
   const SceneOptions& o = options_;
+  for (const Material& m : kMaterials) {
+    for (double a : m.amp) material_amp_.push_back(o.texture_contrast * a);
+  }
   sun_ = Eigen::Vector3d(std::cos(o.sun_elevation_rad) * std::cos(o.sun_azimuth_rad),
                          std::cos(o.sun_elevation_rad) * std::sin(o.sun_azimuth_rad),
                          std::sin(o.sun_elevation_rad));
   flat_shading_ = o.ambient + (1.0 - o.ambient) * sun_.z();
+  shadow_shading_ = o.ambient / flat_shading_;
+}
+
+const double* SurfaceShader::amp(int material) const {
+  return material_amp_.data() + static_cast<size_t>(material) * kOctaves;
+}
+
+bool SurfaceShader::inShadow(const Eigen::Vector3d& p, double time_s) const {
+  return caster_ && caster_->intersectObstacles(p, sun_, std::numeric_limits<double>::infinity(),
+                                                time_s).hit();
 }
 
 double SurfaceShader::shading(const Eigen::Vector3d& normal) const {
@@ -157,6 +174,9 @@ double SurfaceShader::albedo(const SurfaceHit& hit, const TextureFilter& filter,
   if (!hit.hit()) return 0.0;
   const double a = hit.object_id == 0 ? terrainAlbedo(hit, filter)
                                       : obstacleAlbedo(hit, filter, time_s);
+  if (options_.cast_shadows && hit.object_id == 0 && inShadow(hit.point, time_s)) {
+    return a * shadow_shading_;
+  }
   return a * shading(hit.normal);
 }
 
@@ -172,8 +192,8 @@ double SurfaceShader::terrainAlbedo(const SurfaceHit& hit, const TextureFilter& 
     const Footprint fp = footprintOf(filter, a1, a2);
     const double s1 = on_x_line ? p.y() : p.x();
     const int count = bandLimitedOctaves(ground_noise_, s1 + 517.0, p.z() * 1.3 + 211.0, fp, filter, &n);
-    const MaterialId m = o.kind == SceneKind::kOffRoad ? kDirt : kConcrete;
-    return softClamp(materialAlbedo(m, n, count) - (m == kDirt ? 10.0 : 0.0));
+    const MaterialId m = o.offRoad() ? kDirt : kConcrete;
+    return softClamp(materialAlbedo(m, amp(m), n, count) - (m == kDirt ? 10.0 : 0.0));
   }
   const Footprint fp = footprintOf(filter, Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY());
   const int count = bandLimitedOctaves(ground_noise_, p.x(), p.y(), fp, filter, &n);
@@ -181,17 +201,36 @@ double SurfaceShader::terrainAlbedo(const SurfaceHit& hit, const TextureFilter& 
   const double x = p.x(), y = p.y();
   // Blend weights of the materials.
   std::array<double, kMaterialCount> w{};
-  if (o.kind != SceneKind::kOffRoad) {
-    const double yr = y - o.road_center_y_m;
+  if (!o.offRoad()) {
+    // Road coordinates: distance along the road and signed offset from its axis, with the box
+    // filter's extents along them.
+    double s = x, yr = y - o.road_center_y_m, fs = fx, fn = fy;
+    if (!path_.empty()) {
+      const RoadPath::Coordinates rc = path_.coordinates(x, y);
+      const double ch = std::cos(rc.heading_rad), sh = std::sin(rc.heading_rad);
+      const Footprint fpr = footprintOf(filter, Eigen::Vector3d(ch, sh, 0.0), Eigen::Vector3d(-sh, ch, 0.0));
+      s = rc.s_m;
+      yr = rc.n_m;
+      fs = fpr.extent1 / std::max(0.05, 1.0 - rc.curvature_per_m * rc.n_m);  // arc length at offset n
+      fn = fpr.extent2;
+    }
     const double half = 0.5 * o.road_width_m;
+    // The gore and the carriageway beyond it widen the asphalt on the left.
+    double gore = 0.0, far_edge = half;
+    if (o.gore_enabled) {
+      const double u = std::clamp((s - o.gore_start_s_m) / (o.gore_end_s_m - o.gore_start_s_m), 0.0, 1.0);
+      gore = o.gore_start_width_m + u * (o.gore_end_width_m - o.gore_start_width_m);
+      far_edge = half + gore + o.gore_lane_width_m;
+    }
     const double rag = 0.03 * wobble(detail_noise_, 3, x, y, fp.major, filter);
     // The sidewalk beyond the curb is concrete, with a sharp border on the curb line.
     const double side = o.curb_enabled ? intervalCoverage(y, -kInf, o.curb_y_m, fy) : 0.0;
-    const double asphalt = std::min(1.0 - side, intervalCoverage(yr, -half - rag, half + rag, fy));
+    const double asphalt = std::min(1.0 - side, intervalCoverage(yr, -half - rag, far_edge + rag, fn));
     // Gravel shoulder, then grass with a wide, wobbly border.
     const double border =
         half + o.shoulder_width_m + 0.35 * wobble(detail_noise_, 2, x + 100.0, y, fp.major, filter);
-    const double grass = smoothstep(border - 0.25, border + 0.25, std::abs(yr));
+    const double beyond = o.gore_enabled && yr > 0.0 ? yr - (far_edge - half) : std::abs(yr);
+    const double grass = smoothstep(border - 0.25, border + 0.25, beyond);
     const double rest = std::max(0.0, 1.0 - side - asphalt);
     w[kConcrete] = side;
     w[kAsphalt] = asphalt;
@@ -200,15 +239,34 @@ double SurfaceShader::terrainAlbedo(const SurfaceHit& hit, const TextureFilter& 
     // Lane paint: two solid edge lines and the dashed centre line.
     const double e_out = half - o.edge_line_inset_m;
     const double e_in = e_out - o.edge_line_width_m;
-    double paint = intervalCoverage(yr, e_in, e_out, fy) + intervalCoverage(yr, -e_out, -e_in, fy);
+    double paint = intervalCoverage(yr, e_in, e_out, fn) + intervalCoverage(yr, -e_out, -e_in, fn);
     const double cw = 0.5 * o.centre_line_width_m;
-    const double cy = intervalCoverage(yr, -cw, cw, fy);
-    if (cy > 0.0) {
-      const double period = o.centre_dash_length_m + o.centre_gap_length_m;
-      const double cx = (dashCumulative(x + 0.5 * fx, o.centre_dash_phase_m, o.centre_dash_length_m, period) -
-                         dashCumulative(x - 0.5 * fx, o.centre_dash_phase_m, o.centre_dash_length_m, period)) /
-                        fx;
-      paint += cy * cx;
+    const double period = o.centre_dash_length_m + o.centre_gap_length_m;
+    auto dashes = [&](double centre) {
+      const double cy = intervalCoverage(yr, centre - cw, centre + cw, fn);
+      if (cy <= 0.0) return 0.0;
+      const double cx = (dashCumulative(s + 0.5 * fs, o.centre_dash_phase_m, o.centre_dash_length_m, period) -
+                         dashCumulative(s - 0.5 * fs, o.centre_dash_phase_m, o.centre_dash_length_m, period)) /
+                        fs;
+      return cy * cx;
+    };
+    if (o.centre_line_enabled) paint += dashes(0.0);
+    if (o.gore_enabled) {
+      // The far carriageway's edge lines (the near one borders the gore) and lane line, and the
+      // hatching between the two solid lines that border the gore: stripes at 45 degrees.
+      const double near_in = half + gore + o.edge_line_inset_m;
+      paint += intervalCoverage(yr, near_in, near_in + o.edge_line_width_m, fn);
+      paint += intervalCoverage(yr, far_edge - o.edge_line_inset_m - o.edge_line_width_m,
+                                far_edge - o.edge_line_inset_m, fn);
+      paint += dashes(half + gore + 0.5 * o.gore_lane_width_m);
+      const double across = intervalCoverage(yr, e_out, near_in, fn);
+      if (across > 0.0) {
+        const double q = s - yr, fq = fs + fn;
+        const double along = (dashCumulative(q + 0.5 * fq, 0.0, o.hatch_width_m, o.hatch_period_m) -
+                              dashCumulative(q - 0.5 * fq, 0.0, o.hatch_width_m, o.hatch_period_m)) /
+                             fq;
+        paint += across * along;
+      }
     }
     if (paint > 0.0) {
       // Worn paint: a little of the asphalt shows through.
@@ -236,10 +294,10 @@ double SurfaceShader::terrainAlbedo(const SurfaceHit& hit, const TextureFilter& 
   double a = 0.0;
   for (int m = 0; m < kMaterialCount; ++m) {
     if (w[static_cast<size_t>(m)] > 0.0) {
-      a += w[static_cast<size_t>(m)] * materialAlbedo(static_cast<MaterialId>(m), n, count);
+      a += w[static_cast<size_t>(m)] * materialAlbedo(static_cast<MaterialId>(m), amp(m), n, count);
     }
   }
-  if (o.ruts_enabled && o.kind == SceneKind::kOffRoad) {
+  if (o.ruts_enabled && o.offRoad()) {
     // Compacted, darker soil in the ruts.
     for (double c : {o.rut_offset_y_m, -o.rut_offset_y_m}) {
       const double d = std::abs(y - c) / (0.5 * o.rut_width_m);

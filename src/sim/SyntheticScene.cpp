@@ -26,7 +26,7 @@ SyntheticScene::SyntheticScene(const SceneOptions& options) : options_(options) 
   if (!options_.isValid(&why)) throw std::invalid_argument("SceneOptions: " + why);
   terrain_ = std::make_shared<const TerrainModel>(options_);
   caster_ = std::make_shared<const RayCaster>(terrain_, options_);
-  shader_ = std::make_shared<const SurfaceShader>(options_);
+  shader_ = std::make_shared<const SurfaceShader>(options_, caster_);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -63,6 +63,43 @@ void SyntheticScene::toYaml(const std::string& path) const {
      << "embankment_height_m" << o.embankment_height_m;
   fs << "sun_elevation_rad" << o.sun_elevation_rad << "sun_azimuth_rad" << o.sun_azimuth_rad
      << "ambient" << o.ambient;
+  // Zoo features (optional when read: files written before them rebuild as before).
+  fs << "cast_shadows" << static_cast<int>(o.cast_shadows) << "texture_contrast"
+     << o.texture_contrast << "centre_line_enabled" << static_cast<int>(o.centre_line_enabled);
+  fs << "road_path" << "{" << "anchor_x_m" << o.road_path.anchor_xy_m.x() << "anchor_y_m"
+     << o.road_path.anchor_xy_m.y() << "anchor_heading_rad" << o.road_path.anchor_heading_rad
+     << "start_s_m" << o.road_path.start_s_m << "pieces" << "[";
+  for (const auto& pc : o.road_path.pieces) {
+    fs << "{" << "length_m" << pc.length_m << "curvature_per_m" << pc.curvature_per_m << "}";
+  }
+  fs << "]" << "}";
+  fs << "gore_enabled" << static_cast<int>(o.gore_enabled) << "gore_start_s_m" << o.gore_start_s_m
+     << "gore_end_s_m" << o.gore_end_s_m << "gore_start_width_m" << o.gore_start_width_m
+     << "gore_end_width_m" << o.gore_end_width_m << "gore_lane_width_m" << o.gore_lane_width_m
+     << "hatch_period_m" << o.hatch_period_m << "hatch_width_m" << o.hatch_width_m;
+  fs << "profile_curves" << "[";
+  for (const auto& c : o.profile_curves) {
+    fs << "{" << "start_x_m" << c.start_x_m << "length_m" << c.length_m << "grade_after"
+       << c.grade_after << "}";
+  }
+  fs << "]";
+  fs << "bank_enabled" << static_cast<int>(o.bank_enabled) << "bank_center_x_m"
+     << o.bank_center_xy_m.x() << "bank_center_y_m" << o.bank_center_xy_m.y() << "bank_radius_m"
+     << o.bank_radius_m << "bank_superelevation" << o.bank_superelevation << "bank_half_width_m"
+     << o.bank_half_width_m << "bank_transition_m" << o.bank_transition_m;
+  fs << "transverse_waves" << "[";
+  for (const auto& w : o.transverse_waves) {
+    fs << "{" << "start_x_m" << w.start_x_m << "period_m" << w.period_m << "count" << w.count
+       << "height_m" << w.height_m << "}";
+  }
+  fs << "]";
+  fs << "potholes" << "[";
+  for (const auto& h : o.potholes) {
+    fs << "{" << "center_x_m" << h.center_xy.x() << "center_y_m" << h.center_xy.y()
+       << "length_x_m" << h.length_x_m << "width_y_m" << h.width_y_m << "depth_m" << h.depth_m
+       << "}";
+  }
+  fs << "]";
   fs << "boxes" << "[";
   for (const auto& b : o.boxes) {
     fs << "{" << "center_x_m" << b.center_xy.x() << "center_y_m" << b.center_xy.y() << "yaw_rad"
@@ -162,6 +199,31 @@ SceneOptions SyntheticScene::optionsFromYaml(const std::string& path) {
   num("sun_elevation_rad", &o.sun_elevation_rad);
   num("sun_azimuth_rad", &o.sun_azimuth_rad);
   num("ambient", &o.ambient);
+  // Optional keys (the zoo's): absent keeps the default.
+  auto optNum = [&](const char* key, double* v) {
+    if (!fs[key].empty()) num(key, v);
+  };
+  auto optFlag = [&](const char* key, bool* v) {
+    if (!fs[key].empty()) flag(key, v);
+  };
+  optFlag("cast_shadows", &o.cast_shadows);
+  optNum("texture_contrast", &o.texture_contrast);
+  optFlag("centre_line_enabled", &o.centre_line_enabled);
+  optFlag("gore_enabled", &o.gore_enabled);
+  optNum("gore_start_s_m", &o.gore_start_s_m);
+  optNum("gore_end_s_m", &o.gore_end_s_m);
+  optNum("gore_start_width_m", &o.gore_start_width_m);
+  optNum("gore_end_width_m", &o.gore_end_width_m);
+  optNum("gore_lane_width_m", &o.gore_lane_width_m);
+  optNum("hatch_period_m", &o.hatch_period_m);
+  optNum("hatch_width_m", &o.hatch_width_m);
+  optFlag("bank_enabled", &o.bank_enabled);
+  optNum("bank_center_x_m", &o.bank_center_xy_m.x());
+  optNum("bank_center_y_m", &o.bank_center_xy_m.y());
+  optNum("bank_radius_m", &o.bank_radius_m);
+  optNum("bank_superelevation", &o.bank_superelevation);
+  optNum("bank_half_width_m", &o.bank_half_width_m);
+  optNum("bank_transition_m", &o.bank_transition_m);
   auto field = [&](const cv::FileNode& node, const char* key, const char* what) {
     const cv::FileNode n = node[key];
     if (n.empty() || (!n.isReal() && !n.isInt())) {
@@ -189,6 +251,55 @@ SceneOptions SyntheticScene::optionsFromYaml(const std::string& path) {
     p.radius_m = field(n, "radius_m", "pole");
     p.height_m = field(n, "height_m", "pole");
     o.poles.push_back(p);
+  }
+  auto count = [&](const cv::FileNode& node, const char* key, const char* what) {
+    const cv::FileNode n = node[key];
+    if (n.empty() || !n.isInt()) fail(std::string(what) + " entry lacks the integer '" + key + "'");
+    return static_cast<int>(n);
+  };
+  auto list = [&](const char* key) {
+    const cv::FileNode n = fs[key];
+    if (!n.empty() && !n.isSeq()) fail(std::string("'") + key + "' is not a list");
+    return n;
+  };
+  const cv::FileNode road = fs["road_path"];
+  if (!road.empty()) {
+    if (!road.isMap()) fail("'road_path' is not a map");
+    o.road_path.anchor_xy_m = {field(road, "anchor_x_m", "road_path"),
+                               field(road, "anchor_y_m", "road_path")};
+    o.road_path.anchor_heading_rad = field(road, "anchor_heading_rad", "road_path");
+    o.road_path.start_s_m = field(road, "start_s_m", "road_path");
+    const cv::FileNode pieces = road["pieces"];
+    if (!pieces.empty() && !pieces.isSeq()) fail("'road_path: pieces' is not a list");
+    for (const auto& n : pieces) {
+      RoadPiece pc;
+      pc.length_m = field(n, "length_m", "road piece");
+      pc.curvature_per_m = field(n, "curvature_per_m", "road piece");
+      o.road_path.pieces.push_back(pc);
+    }
+  }
+  for (const auto& n : list("profile_curves")) {
+    VerticalCurve c;
+    c.start_x_m = field(n, "start_x_m", "profile curve");
+    c.length_m = field(n, "length_m", "profile curve");
+    c.grade_after = field(n, "grade_after", "profile curve");
+    o.profile_curves.push_back(c);
+  }
+  for (const auto& n : list("transverse_waves")) {
+    TransverseWaves w;
+    w.start_x_m = field(n, "start_x_m", "transverse waves");
+    w.period_m = field(n, "period_m", "transverse waves");
+    w.count = count(n, "count", "transverse waves");
+    w.height_m = field(n, "height_m", "transverse waves");
+    o.transverse_waves.push_back(w);
+  }
+  for (const auto& n : list("potholes")) {
+    Pothole h;
+    h.center_xy = {field(n, "center_x_m", "pothole"), field(n, "center_y_m", "pothole")};
+    h.length_x_m = field(n, "length_x_m", "pothole");
+    h.width_y_m = field(n, "width_y_m", "pothole");
+    h.depth_m = field(n, "depth_m", "pothole");
+    o.potholes.push_back(h);
   }
   std::string why;
   if (!o.isValid(&why)) fail(why);

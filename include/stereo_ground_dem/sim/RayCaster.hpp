@@ -6,7 +6,9 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <vector>
 
+#include "stereo_ground_dem/sim/ObstacleGrid.hpp"
 #include "stereo_ground_dem/sim/SceneOptions.hpp"
 #include "stereo_ground_dem/sim/SurfaceHit.hpp"
 #include "stereo_ground_dem/sim/TerrainModel.hpp"
@@ -37,8 +39,24 @@ class RayCaster {
   double surfaceHeight(double x, double y, double time_s = 0.0) const;
 
  private:
+  /// Whether (x, y) lies in the footprint of obstacle `index` (0-based: boxes, then poles).
+  bool insideFootprint(int index, double x, double y, double time_s) const;
+
   std::shared_ptr<const TerrainModel> terrain_;
   SceneOptions options_;
+  /// Per box, what every ray test needs.
+  struct BoxCache {
+    bool moving = false;
+    double cos_yaw = 1.0, sin_yaw = 0.0;
+    double radius = 0.0;     ///< of the footprint's circumscribed circle (+ 1e-9) [m]
+    double terrain_z = 0.0;  ///< terrain height at the centre (static boxes) [m]
+  };
+  std::vector<BoxCache> box_cache_;
+  std::vector<double> pole_terrain_z_;  ///< terrain height at each pole's axis [m]
+  ObstacleGrid grid_;               ///< static obstacles, when there are many
+  std::vector<int> moving_boxes_;   ///< indices of the boxes with a velocity
+  double obstacle_z_lo_ = 0.0;      ///< every obstacle lies in this slab [m]
+  double obstacle_z_hi_ = 0.0;
 };
 
 }  // namespace stereo_ground_dem::sim

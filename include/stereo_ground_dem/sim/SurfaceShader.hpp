@@ -1,7 +1,11 @@
 #pragma once
 /// \file SurfaceShader.hpp
 /// The appearance of a SyntheticScene: textured materials (road with lane paint, gravel, grass,
-/// dirt track, rock, concrete, obstacle paint) and their Lambertian shading by a fixed sun.
+/// dirt track, rock, concrete, obstacle paint) and their Lambertian shading by a fixed sun, with
+/// the obstacles' cast shadows on the terrain when SceneOptions::cast_shadows is set.
+///
+/// Road layout: without a road path the road runs along x; with one, the markings are laid out in
+/// the path's coordinates (arc length, offset), the gore hatching included.
 ///
 /// Albedo: grey levels before camera gain and bias (roughly 40..220), Lambertian-shaded by the
 /// sun, so it is the same for every viewpoint. Textures are hash-based gradient noise in octaves
@@ -10,7 +14,10 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <vector>
 
+#include "stereo_ground_dem/sim/RayCaster.hpp"
+#include "stereo_ground_dem/sim/RoadPath.hpp"
 #include "stereo_ground_dem/sim/SceneOptions.hpp"
 #include "stereo_ground_dem/sim/SurfaceHit.hpp"
 #include "stereo_ground_dem/sim/TextureFilter.hpp"
@@ -20,8 +27,8 @@ namespace stereo_ground_dem::sim {
 
 class SurfaceShader {
  public:
-  /// `options` must be valid.
-  explicit SurfaceShader(const SceneOptions& options);
+  /// `options` must be valid; `caster` (of the same scene) casts the shadow rays.
+  SurfaceShader(const SceneOptions& options, std::shared_ptr<const RayCaster> caster);
 
   /// Shaded albedo [grey] at a hit, band-limited for the footprint in `filter`.
   double albedo(const SurfaceHit& hit, const TextureFilter& filter, double time_s = 0.0) const;
@@ -33,10 +40,18 @@ class SurfaceShader {
   double terrainAlbedo(const SurfaceHit& hit, const TextureFilter& filter) const;
   double obstacleAlbedo(const SurfaceHit& hit, const TextureFilter& filter, double time_s) const;
   double shading(const Eigen::Vector3d& normal) const;
+  /// Whether the ray from `p` towards the sun hits an obstacle at time_s.
+  bool inShadow(const Eigen::Vector3d& p, double time_s) const;
+  /// The octave amplitudes of a material (scaled by the texture contrast).
+  const double* amp(int material) const;
 
   SceneOptions options_;
-  Eigen::Vector3d sun_ = Eigen::Vector3d::UnitZ();
+  RoadPath path_;
+  std::shared_ptr<const RayCaster> caster_;
+  std::vector<double> material_amp_;  ///< [material][octave]
+  Eigen::Vector3d sun_ = Eigen::Vector3d::UnitZ();  ///< unit, towards the sun
   double flat_shading_ = 1.0;
+  double shadow_shading_ = 1.0;  ///< ambient share / flat_shading_
   TextureNoise ground_noise_;
   TextureNoise detail_noise_;  ///< material borders, wear
 };

@@ -7,13 +7,16 @@
 /// Model:
 ///  - height(x, y) = smooth part + piecewise-constant steps;
 ///  - every step (curb, terrace) and every edge of a feature's support (bump, ruts, embankment
-///    kinks) lies on an axis-parallel line x = const or y = const ("feature lines");
+///    kinks, the ends of vertical curves and of transverse wave rows, potholes) lies on an
+///    axis-parallel line x = const or y = const ("feature lines");
+///  - the banking around a circle is C1 everywhere with global bounds (no feature lines);
 ///  - between feature lines (in one "cell"), the smooth part is C1 with known bounds on its slope
 ///    and curvature along any ray direction (rayBounds(), cellBounds()), so a ray can be marched
 ///    with provably safe steps; at a feature line, a ray below the terrain on the far side hits a
 ///    vertical face exactly on that line.
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "stereo_ground_dem/sim/SceneOptions.hpp"
@@ -36,6 +39,9 @@ class TerrainModel {
     bool rut[2] = {false, false};
     int embankment = 0;       ///< 0 before the foot, 1 on the slope, 2 on top
     double offset = 0.0;      ///< sum of the steps (curb, terrace) [m]
+    int profile_piece = -1;   ///< piece of the longitudinal profile (-1: no profile)
+    int wave_row = -1;        ///< transverse wave row covering x (-1: none)
+    uint32_t potholes = 0;    ///< bit i: inside pothole i
   };
 
   /// Per-ray bounds of |d/dt h(o + t d)| (slope) and |d^2/dt^2 h| (curvature) of each feature.
@@ -45,6 +51,8 @@ class TerrainModel {
     double taper_slope = 0.0, taper_curv = 0.0;
     double rut_slope = 0.0, rut_curv = 0.0;
     double emb_slope = 0.0;
+    double bank_slope = 0.0, bank_curv = 0.0;
+    double adx = 0.0, ady = 0.0;  ///< |d.x|, |d.y|
   };
 
   /// `options` must be valid (SceneOptions::isValid).
@@ -77,7 +85,29 @@ class TerrainModel {
   double rollingOffset() const { return rolling_offset_m_; }
 
  private:
+  /// A piece of the longitudinal profile: z = z0 + g0 u + c u^2 / 2, u = x - x0.
+  struct ProfilePiece {
+    double x0, z0, g0, c;
+    double slope_max;  ///< max |dz/dx| on the piece
+    double z_max;      ///< highest z on the piece
+    double z_min;      ///< lowest z on the piece
+  };
+  /// A transverse wave row with its derivative bounds per unit |d.x| (and |d.x|^2).
+  struct WaveRow {
+    double x0, x1, k, half_height;  ///< k = 2 pi / period
+    double slope, curv;
+  };
+
+  void buildProfile();
+  void buildWaves();
+  double profileHeight(double x, int piece, double* gx) const;
+  double bankHeight(double x, double y, double* gx, double* gy) const;
+
   SceneOptions options_;
+  std::vector<ProfilePiece> profile_;
+  std::vector<double> profile_breaks_;  ///< profile_[i + 1] starts at profile_breaks_[i]
+  std::vector<WaveRow> wave_rows_;      ///< sorted along x
+  double bank_top_m_ = 0.0;             ///< |superelevation| * (half width + transition / 2)
   std::vector<RollingWave> waves_;
   double rolling_offset_m_ = 0.0;
   double rolling_amp_sum_m_ = 0.0;
