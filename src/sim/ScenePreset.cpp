@@ -126,7 +126,7 @@ ScenePreset ScenePreset::forKind(SceneKind kind, uint64_t seed) {
       o.rolling_components = 2;
       o.rolling_min_wavelength_m = 30.0;
       o.rolling_max_wavelength_m = 60.0;
-      o.transverse_waves = {{2.0, 2.7, 80, 0.04}};
+      o.transverse_waves = {{-10.0, 2.7, 85, 0.04}};  // both axles on it from frame 0
       const double holes[][5] = {
           {6.0, 1.7, 0.9, 0.7, 0.08},   {11.5, -1.8, 1.2, 0.8, 0.10}, {17.0, 1.9, 0.8, 0.9, 0.07},
           {23.0, -1.6, 1.0, 0.6, 0.09}, {29.5, 2.0, 1.3, 0.9, 0.10},  {36.0, -1.9, 0.9, 0.8, 0.08},
