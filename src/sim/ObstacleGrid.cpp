@@ -19,7 +19,9 @@ struct Disc {
 
 }  // namespace
 
-ObstacleGrid::ObstacleGrid(const SceneOptions& options, double cell_m) : cell_m_(cell_m) {
+ObstacleGrid::ObstacleGrid(const SceneOptions& options, const std::vector<double>& top_z,
+                           double cell_m)
+    : cell_m_(cell_m) {
   std::vector<Disc> discs;
   for (size_t i = 0; i < options.boxes.size(); ++i) {
     const BoxObstacle& b = options.boxes[i];
@@ -58,6 +60,9 @@ ObstacleGrid::ObstacleGrid(const SceneOptions& options, double cell_m) : cell_m_
   for (const auto& l : lists) {
     ids_.insert(ids_.end(), l.begin(), l.end());
     offsets_.push_back(static_cast<int>(ids_.size()));
+    double top = -std::numeric_limits<double>::infinity();
+    for (int id : l) top = std::max(top, top_z[static_cast<size_t>(id)] + kMarginM);
+    cell_top_.push_back(top);
   }
 }
 
@@ -67,59 +72,6 @@ void ObstacleGrid::collectAt(double x, double y, std::vector<int>* ids) const {
   if (!(fx >= 0.0 && fx < cells_x_ && fy >= 0.0 && fy < cells_y_)) return;
   const size_t c = static_cast<size_t>(fy) * cells_x_ + static_cast<size_t>(fx);
   ids->insert(ids->end(), ids_.begin() + offsets_[c], ids_.begin() + offsets_[c + 1]);
-}
-
-void ObstacleGrid::collectAlongRay(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t0,
-                                   double t1, std::vector<int>* ids) const {
-  if (empty() || !(t1 >= t0)) return;
-  const size_t first = ids->size();
-  // Clip [t0, t1] to the grid's rectangle.
-  const double lo[2] = {x0_, y0_};
-  const double hi[2] = {x0_ + cells_x_ * cell_m_, y0_ + cells_y_ * cell_m_};
-  double ta = t0, tb = t1;
-  for (int a = 0; a < 2; ++a) {
-    if (d[a] == 0.0) {
-      if (o[a] < lo[a] || o[a] > hi[a]) return;
-      continue;
-    }
-    double u0 = (lo[a] - o[a]) / d[a], u1 = (hi[a] - o[a]) / d[a];
-    if (u0 > u1) std::swap(u0, u1);
-    ta = std::max(ta, u0);
-    tb = std::min(tb, u1);
-  }
-  if (!(ta <= tb)) return;
-  // Walk the cells the trace crosses (Amanatides and Woo).
-  const double px = o.x() + ta * d.x(), py = o.y() + ta * d.y();
-  int ix = std::clamp(static_cast<int>(std::floor((px - x0_) / cell_m_)), 0, cells_x_ - 1);
-  int iy = std::clamp(static_cast<int>(std::floor((py - y0_) / cell_m_)), 0, cells_y_ - 1);
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  const int step_x = d.x() > 0.0 ? 1 : -1, step_y = d.y() > 0.0 ? 1 : -1;
-  double next_x = kInf, next_y = kInf, delta_x = kInf, delta_y = kInf;
-  if (d.x() != 0.0) {
-    next_x = (x0_ + (ix + (step_x > 0 ? 1 : 0)) * cell_m_ - o.x()) / d.x();
-    delta_x = cell_m_ / std::abs(d.x());
-  }
-  if (d.y() != 0.0) {
-    next_y = (y0_ + (iy + (step_y > 0 ? 1 : 0)) * cell_m_ - o.y()) / d.y();
-    delta_y = cell_m_ / std::abs(d.y());
-  }
-  for (;;) {
-    const size_t c = static_cast<size_t>(iy) * cells_x_ + static_cast<size_t>(ix);
-    ids->insert(ids->end(), ids_.begin() + offsets_[c], ids_.begin() + offsets_[c + 1]);
-    if (next_x < next_y) {
-      if (next_x > tb) break;
-      ix += step_x;
-      next_x += delta_x;
-      if (ix < 0 || ix >= cells_x_) break;
-    } else {
-      if (next_y > tb) break;
-      iy += step_y;
-      next_y += delta_y;
-      if (iy < 0 || iy >= cells_y_) break;
-    }
-  }
-  std::sort(ids->begin() + static_cast<std::ptrdiff_t>(first), ids->end());
-  ids->erase(std::unique(ids->begin() + static_cast<std::ptrdiff_t>(first), ids->end()), ids->end());
 }
 
 }  // namespace stereo_ground_dem::sim

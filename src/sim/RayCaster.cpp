@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -14,7 +15,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kObstacleBuryM = 1.0;     // obstacles reach this far below the terrain
 constexpr double kTerrainHitEpsM = 1e-7;   // a ray closer than this above the terrain hits it
 constexpr int kMaxMarchSteps = 20000;
-constexpr int kGridMinObstacles = 16;      // more static obstacles than this: ObstacleGrid
+constexpr int kGridMinObstacles = 8;       // more static obstacles than this: ObstacleGrid
 constexpr double kGridCellM = 4.0;
 
 constexpr int kTerrainTop = SurfaceHit::kTerrainTop;
@@ -52,7 +53,16 @@ RayCaster::RayCaster(std::shared_ptr<const TerrainModel> terrain, const SceneOpt
   }
   obstacle_z_lo_ = terrain_->minHeight() - kObstacleBuryM - 1e-6;
   obstacle_z_hi_ = terrain_->maxHeight() + top + 1e-6;
-  if (statics > kGridMinObstacles) grid_ = ObstacleGrid(options_, kGridCellM);
+  if (statics > kGridMinObstacles) {
+    std::vector<double> top_z;
+    for (size_t i = 0; i < options_.boxes.size(); ++i) {
+      top_z.push_back(box_cache_[i].terrain_z + options_.boxes[i].height_m);
+    }
+    for (size_t j = 0; j < options_.poles.size(); ++j) {
+      top_z.push_back(pole_terrain_z_[j] + options_.poles[j].height_m);
+    }
+    grid_ = ObstacleGrid(options_, top_z, kGridCellM);
+  }
 }
 
 int RayCaster::obstacleIdAt(double x, double y, double time_s) const {
@@ -178,8 +188,10 @@ SurfaceHit RayCaster::intersectTerrain(const Eigen::Vector3d& o, const Eigen::Ve
     const double tm = 0.5 * (a + b);
     const TerrainModel::Cell cell = terrain.cellAt(o.x() + tm * d.x(), o.y() + tm * d.y());
     // Bounds in this cell.
-    double slope, curv, ztop;
-    terrain.cellBounds(rb, cell, &slope, &curv, &ztop);
+    double slope, curv, ztop, linear;
+    terrain.cellBounds(rb, cell, &slope, &curv, &ztop, &linear);
+    // The ray's rate of climb over the linear part of the terrain.
+    const double dz_rel = d.z() - linear;
 
     double gx = 0.0, gy = 0.0;
     const double dz = d.z();
@@ -211,7 +223,7 @@ SurfaceHit RayCaster::intersectTerrain(const Eigen::Vector3d& o, const Eigen::Ve
       }
     }
     // The ray rises at least as fast as the terrain can: no hit in this cell.
-    if (f > kTerrainHitEpsM && dz - slope >= 0.0) continue;
+    if (f > kTerrainHitEpsM && dz_rel - slope >= 0.0) continue;
     bool hit_found = false;
     for (int it = 0; it < kMaxMarchSteps; ++it) {
       if (f <= kTerrainHitEpsM) {
@@ -219,8 +231,8 @@ SurfaceHit RayCaster::intersectTerrain(const Eigen::Vector3d& o, const Eigen::Ve
         break;
       }
       const double fd = dz - (gx * d.x() + gy * d.y());
-      // Safe steps: f(t + s) >= f + (dz - slope) s  and  f(t + s) >= f + fd s - curv s^2 / 2.
-      const double s1 = slope - dz > 0.0 ? f / (slope - dz) : kInf;
+      // Safe steps: f(t + s) >= f + (dz_rel - slope) s  and  f(t + s) >= f + fd s - curv s^2 / 2.
+      const double s1 = slope - dz_rel > 0.0 ? f / (slope - dz_rel) : kInf;
       double s2;
       if (curv > 0.0) {
         s2 = (fd + std::sqrt(fd * fd + 2.0 * curv * f)) / curv;
@@ -255,7 +267,15 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
   // Whether the ray's x-y trace on [0, t_best] passes within `radius` of `c` (cheap rejection
   // before the terrain height under the obstacle is computed).
   const double dxy2 = d.x() * d.x() + d.y() * d.y();
+  // With many obstacles: the x-y box of the part of the ray that can meet one (set below), a
+  // cheaper first rejection.
+  bool use_box = false;
+  double box_lo[2] = {0.0, 0.0}, box_hi[2] = {0.0, 0.0};
   auto nearTrace = [&](const Eigen::Vector2d& c, double radius) {
+    if (use_box && (c.x() + radius < box_lo[0] || c.x() - radius > box_hi[0] ||
+                    c.y() + radius < box_lo[1] || c.y() - radius > box_hi[1])) {
+      return false;
+    }
     const double cx = c.x() - o.x(), cy = c.y() - o.y();
     double t = dxy2 > 0.0 ? (cx * d.x() + cy * d.y()) / dxy2 : 0.0;
     t = std::clamp(t, 0.0, t_best);
@@ -355,7 +375,7 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
     return best;
   }
   // Many obstacles: the moving boxes and the static obstacles near the ray's trace inside the
-  // slab that holds every obstacle, in index order.
+  // slab that holds every obstacle.
   double ta = 0.0, tb = t_max;
   if (d.z() == 0.0) {
     if (o.z() < obstacle_z_lo_ || o.z() > obstacle_z_hi_) tb = -1.0;
@@ -365,18 +385,37 @@ SurfaceHit RayCaster::intersectObstacles(const Eigen::Vector3d& o, const Eigen::
     ta = std::max(ta, u0);
     tb = std::min(tb, u1);
   }
-  thread_local std::vector<int> ids;
-  ids.assign(moving_boxes_.begin(), moving_boxes_.end());
-  if (ta <= tb) grid_.collectAlongRay(o, d, ta, tb, &ids);
-  std::sort(ids.begin(), ids.end());
-  const auto nb = static_cast<int>(so.boxes.size());
-  for (int id : ids) {
-    if (id < nb) {
-      testBox(static_cast<size_t>(id));
-    } else {
-      testPole(static_cast<size_t>(id - nb));
-    }
+  if (!(ta <= tb)) return best;
+  use_box = std::isfinite(tb);
+  for (int a = 0; a < 2; ++a) {
+    const double p0 = o[a] + ta * d[a], p1 = o[a] + tb * d[a];
+    box_lo[a] = std::min(p0, p1) - 1e-9 * (1.0 + std::abs(p0) + std::abs(p1));
+    box_hi[a] = std::max(p0, p1) + 1e-9 * (1.0 + std::abs(p0) + std::abs(p1));
   }
+  for (int i : moving_boxes_) testBox(static_cast<size_t>(i));
+  // Static obstacles cell by cell, nearest first, each tested once (stamps); done when the best
+  // hit so far lies before the next cell.
+  thread_local std::vector<uint32_t> stamps;
+  thread_local uint32_t stamp = 0;
+  if (stamps.size() < static_cast<size_t>(obstacleCount())) stamps.assign(obstacleCount(), 0);
+  if (++stamp == 0) {
+    std::fill(stamps.begin(), stamps.end(), 0);
+    stamp = 1;
+  }
+  const auto nb = static_cast<int>(so.boxes.size());
+  grid_.walk(o, d, ta, std::min(tb, t_best), [&](const int* ids, int n, double t_exit) {
+    for (int k = 0; k < n; ++k) {
+      const int id = ids[k];
+      if (stamps[static_cast<size_t>(id)] == stamp) continue;
+      stamps[static_cast<size_t>(id)] = stamp;
+      if (id < nb) {
+        testBox(static_cast<size_t>(id));
+      } else {
+        testPole(static_cast<size_t>(id - nb));
+      }
+    }
+    return !(t_best <= t_exit);
+  });
   return best;
 }
 

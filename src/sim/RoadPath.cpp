@@ -94,6 +94,10 @@ RoadPath::RoadPath(const RoadPathOptions& options) {
     const Piece& next = pieces_[i + 1];
     pieces_[i].start = advancePose(next.start, pieces_[i].curvature, -pieces_[i].length);
   }
+  for (Piece& p : pieces_) {
+    p.tangent = p.start.tangent();
+    p.normal = p.start.normal();
+  }
 }
 
 RoadPath::Pose RoadPath::advance(const Piece& piece, double u) const {
@@ -127,13 +131,13 @@ RoadPath::Coordinates RoadPath::coordinates(double x, double y) const {
     double u, n;
     if (pc.curvature == 0.0) {
       const Eigen::Vector2d w = q - st.xy;
-      u = w.dot(st.tangent());
-      n = w.dot(st.normal());
+      u = w.dot(pc.tangent);
+      n = w.dot(pc.normal);
       if ((u < 0.0 && i != 0) || (u > pc.length && i != last)) continue;
     } else {
       const double k = pc.curvature;
       const double radius = 1.0 / std::abs(k);
-      const Eigen::Vector2d centre = st.xy + st.normal() / k;
+      const Eigen::Vector2d centre = st.xy + pc.normal / k;
       const Eigen::Vector2d a = st.xy - centre;
       const Eigen::Vector2d w = q - centre;
       const double r = w.norm();

@@ -190,13 +190,13 @@ ScenePreset ScenePreset::forKind(SceneKind kind, uint64_t seed) {
       break;
     }
 
-    // --- rolling: off-road rolling terrain along x: a dip, a 14 % climb, a crest, a 15 % descent,
-    // a valley and an 8 % climb (vertical curves: the same grades for every seed), two seeded
-    // rolling components across it, wheel ruts, and a 35 cm deep, 5 m wide ditch across the
-    // track 14 m ahead; dirt and grass, no paint.
+    // --- rolling: off-road rolling terrain along x, vertical curves end to end (the same hills for
+    // every seed): a dip, a climb steepening to 14 %, a crest 2.4 m up at x = 42 m, a descent
+    // steepening to 15 %, a valley, a gentle rise; two seeded rolling components across it,
+    // wheel ruts, and a 35 cm deep, 5 m wide ditch across the track 14 m ahead; dirt and grass.
     case SceneKind::kRolling:
-      o.profile_curves = {{-40.0, 30.0, -0.06}, {5.0, 25.0, 0.14},  {45.0, 30.0, -0.15},
-                          {90.0, 25.0, 0.08},   {130.0, 30.0, 0.0}};
+      o.profile_curves = {{-30.0, 30.0, -0.04}, {0.0, 25.0, 0.14},  {25.0, 35.0, -0.15},
+                          {60.0, 30.0, 0.06},   {90.0, 30.0, 0.0}};
       o.rolling_enabled = true;
       o.rolling_amplitude_m = 0.5;
       o.rolling_components = 2;

@@ -154,8 +154,7 @@ const double* SurfaceShader::amp(int material) const {
 }
 
 bool SurfaceShader::inShadow(const Eigen::Vector3d& p, double time_s) const {
-  return caster_ && caster_->intersectObstacles(p, sun_, std::numeric_limits<double>::infinity(),
-                                                time_s).hit();
+  return caster_ && caster_->blockedUpwards(p, sun_, time_s);
 }
 
 double SurfaceShader::shading(const Eigen::Vector3d& normal) const {

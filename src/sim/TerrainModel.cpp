@@ -417,13 +417,15 @@ TerrainModel::RayBounds TerrainModel::rayBounds(const Eigen::Vector3d& d) const 
     rb.bank_slope = e * std::sqrt(dxy2);
     rb.bank_curv = e * (1.0 / o.bank_transition_m + 1.0 / r_min) * dxy2;
   }
+  rb.dx = d.x();
   rb.adx = adx;
   rb.ady = ady;
   return rb;
 }
 
 void TerrainModel::cellBounds(const RayBounds& rb, const Cell& cell, double* slope_out,
-                              double* curv_out, double* z_top) const {
+                              double* curv_out, double* z_top, double* linear_out) const {
+  double linear = 0.0;
   const SceneOptions& so = options_;
   const double rolling_top = rolling_amp_sum_m_ - rolling_offset_m_;
   double slope = rb.rolling_slope, curv = rb.rolling_curv;
@@ -443,8 +445,12 @@ void TerrainModel::cellBounds(const RayBounds& rb, const Cell& cell, double* slo
   if (cell.embankment != 0) ztop += so.embankment_height_m;
   if (cell.profile_piece >= 0) {
     const ProfilePiece& pc = profile_[static_cast<size_t>(cell.profile_piece)];
-    slope += pc.slope_max * rb.adx;
-    curv += std::abs(pc.c) * rb.adx * rb.adx;
+    if (pc.c == 0.0) {
+      linear += pc.g0 * rb.dx;  // a straight grade: exactly linear along the ray
+    } else {
+      slope += pc.slope_max * rb.adx;
+      curv += std::abs(pc.c) * rb.adx * rb.adx;
+    }
     ztop += pc.z_max;
   }
   if (so.bank_enabled) {
@@ -470,6 +476,7 @@ void TerrainModel::cellBounds(const RayBounds& rb, const Cell& cell, double* slo
   *slope_out = slope;
   *curv_out = curv;
   *z_top = ztop;
+  *linear_out = linear;
 }
 
 }  // namespace stereo_ground_dem::sim

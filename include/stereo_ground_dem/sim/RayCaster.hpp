@@ -5,6 +5,7 @@
 /// obstacles (boxes and poles, placed at the time of the ray), plus the obstacle footprints.
 
 #include <Eigen/Core>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -21,6 +22,7 @@ class RayCaster {
   RayCaster(std::shared_ptr<const TerrainModel> terrain, const SceneOptions& options);
 
   const TerrainModel& terrain() const { return *terrain_; }
+  int obstacleCount() const { return static_cast<int>(options_.boxes.size() + options_.poles.size()); }
 
   /// The nearest surface (terrain or obstacle) hit by the ray o + t d, 0 < t <= t_max (d need
   /// not be unit). Exact up to ~1e-6 m along z for the terrain, to rounding for obstacles.
@@ -32,6 +34,14 @@ class RayCaster {
   /// The nearest obstacle hit only (obstacles at time_s).
   SurfaceHit intersectObstacles(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max,
                                 double time_s) const;
+
+  /// Whether the ray o + t d, t > 0, meets an obstacle at time_s (d pointing up: a shadow ray).
+  bool blockedUpwards(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double time_s) const {
+    if (!(d.z() > 0.0)) return intersectObstacles(o, d, std::numeric_limits<double>::infinity(), time_s).hit();
+    // Above the highest obstacle the ray meets none.
+    const double t_top = (obstacle_z_hi_ - o.z()) / d.z();
+    return t_top > 0.0 && intersectObstacles(o, d, t_top, time_s).hit();
+  }
 
   /// Object id of an obstacle whose footprint contains (x, y) at time_s, 0 if none.
   int obstacleIdAt(double x, double y, double time_s = 0.0) const;

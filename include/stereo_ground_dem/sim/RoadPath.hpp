@@ -79,6 +79,8 @@ class RoadPath {
     double length = 0.0;
     double curvature = 0.0;
     Pose start;          ///< pose at s0
+    Eigen::Vector2d tangent = Eigen::Vector2d::UnitX();  ///< start.tangent()
+    Eigen::Vector2d normal = Eigen::Vector2d::UnitY();   ///< start.normal()
   };
   Pose advance(const Piece& piece, double u) const;
 

@@ -52,6 +52,7 @@ class TerrainModel {
     double rut_slope = 0.0, rut_curv = 0.0;
     double emb_slope = 0.0;
     double bank_slope = 0.0, bank_curv = 0.0;
+    double dx = 0.0;              ///< d.x
     double adx = 0.0, ady = 0.0;  ///< |d.x|, |d.y|
   };
 
@@ -77,9 +78,11 @@ class TerrainModel {
 
   /// The directional bounds of every feature along rays of direction `d` (need not be unit).
   RayBounds rayBounds(const Eigen::Vector3d& d) const;
-  /// Slope and curvature bounds along the ray inside `cell`, and the highest height there.
+  /// Inside `cell`, along the ray: h = (a part linear in t, of slope `linear` per unit t) + (a
+  /// rest whose slope and curvature are bounded by `slope` and `curv`); `z_top` bounds h.
+  /// (The linear part: the longitudinal profile on a straight grade; 0 for the other features.)
   void cellBounds(const RayBounds& rb, const Cell& cell, double* slope, double* curv,
-                  double* z_top) const;
+                  double* z_top, double* linear) const;
 
   const std::vector<RollingWave>& rollingWaves() const { return waves_; }
   double rollingOffset() const { return rolling_offset_m_; }
