@@ -111,11 +111,11 @@ Eigen::Isometry3d SequenceGenerator::cameraPose(const SyntheticScene& scene,
   ground_R_body.col(1) = ey;
   ground_R_body.col(2) = up;
   if (extra_pitch_rad != 0.0 || extra_roll_rad != 0.0) {
-    // Nose down = positive rotation about the body's y (left) axis; left side up = negative
+    // Nose down = positive rotation about the body's y (left) axis; left side up = positive
     // rotation about its x (forward) axis.
     ground_R_body = ground_R_body *
                     Eigen::AngleAxisd(extra_pitch_rad, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-                    Eigen::AngleAxisd(-extra_roll_rad, Eigen::Vector3d::UnitX()).toRotationMatrix();
+                    Eigen::AngleAxisd(extra_roll_rad, Eigen::Vector3d::UnitX()).toRotationMatrix();
   }
   const Eigen::Vector3d up_final = ground_R_body.col(2);
   const Eigen::Isometry3d body_T_camera =

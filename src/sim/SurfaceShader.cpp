@@ -252,13 +252,13 @@ double SurfaceShader::terrainAlbedo(const SurfaceHit& hit, const TextureFilter& 
     if (o.centre_line_enabled) paint += dashes(0.0);
     if (o.gore_enabled) {
       // The far carriageway's edge lines (the near one borders the gore) and lane line, and the
-      // hatching between the two solid lines that border the gore: stripes at 45 degrees.
+      // hatching of the gore (under the solid lines that border it): stripes at 45 degrees.
       const double near_in = half + gore + o.edge_line_inset_m;
       paint += intervalCoverage(yr, near_in, near_in + o.edge_line_width_m, fn);
       paint += intervalCoverage(yr, far_edge - o.edge_line_inset_m - o.edge_line_width_m,
                                 far_edge - o.edge_line_inset_m, fn);
       paint += dashes(half + gore + 0.5 * o.gore_lane_width_m);
-      const double across = intervalCoverage(yr, e_out, near_in, fn);
+      const double across = gore > 0.0 ? intervalCoverage(yr, half, half + gore, fn) : 0.0;
       if (across > 0.0) {
         const double q = s - yr, fq = fs + fn;
         const double along = (dashCumulative(q + 0.5 * fq, 0.0, o.hatch_width_m, o.hatch_period_m) -
