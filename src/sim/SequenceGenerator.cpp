@@ -74,12 +74,20 @@ bool SequenceOptions::isValid(std::string* why) const {
   if (!std::isfinite(left_bias_grey) || !std::isfinite(right_bias_grey)) {
     return bad("biases must be finite");
   }
+  if (!std::isfinite(path_offset_m) || !std::isfinite(path_start_m)) {
+    return bad("path offset and start must be finite");
+  }
+  if (!(std::abs(attitude_pitch_rad) < 0.3) || !(std::abs(attitude_roll_rad) < 0.3) ||
+      !(attitude_jitter_rad >= 0.0 && attitude_jitter_rad < 0.1)) {
+    return bad("attitude perturbation: |amplitudes| < 0.3 rad, jitter in [0, 0.1) rad");
+  }
   return true;
 }
 
 Eigen::Isometry3d SequenceGenerator::cameraPose(const SyntheticScene& scene,
                                                 const SequenceOptions& o, double x, double y,
-                                                double yaw_rad) {
+                                                double yaw_rad, double extra_pitch_rad,
+                                                double extra_roll_rad) {
   const Eigen::Vector2d p(x, y);
   const Eigen::Vector2d fwd(std::cos(yaw_rad), std::sin(yaw_rad));
   const Eigen::Vector2d left(-fwd.y(), fwd.x());
@@ -102,11 +110,19 @@ Eigen::Isometry3d SequenceGenerator::cameraPose(const SyntheticScene& scene,
   ground_R_body.col(0) = ex;
   ground_R_body.col(1) = ey;
   ground_R_body.col(2) = up;
+  if (extra_pitch_rad != 0.0 || extra_roll_rad != 0.0) {
+    // Nose down = positive rotation about the body's y (left) axis; left side up = positive
+    // rotation about its x (forward) axis.
+    ground_R_body = ground_R_body *
+                    Eigen::AngleAxisd(extra_pitch_rad, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+                    Eigen::AngleAxisd(extra_roll_rad, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  }
+  const Eigen::Vector3d up_final = ground_R_body.col(2);
   const Eigen::Isometry3d body_T_camera =
       StereoRenderer::lookingPose(Eigen::Vector3d::Zero(), 0.0, o.camera_pitch_down_rad);
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.linear() = ground_R_body * body_T_camera.linear();
-  pose.translation() = Eigen::Vector3d(x, y, z0) + o.camera_height_m * up;
+  pose.translation() = Eigen::Vector3d(x, y, z0) + o.camera_height_m * up_final;
   return pose;
 }
 
@@ -117,19 +133,45 @@ SequenceGenerator::SequenceGenerator(const SyntheticScene& scene, const StereoRi
   std::string why;
   if (!options_.isValid(&why)) throw std::invalid_argument("SequenceOptions: " + why);
   const SequenceOptions& o = options_;
+  const RoadPath path(renderer_.scene().options().road_path);
+  if (o.follow_road_path) {
+    if (path.empty()) throw std::invalid_argument("SequenceOptions: follow_road_path on a scene without a road path");
+    for (const auto& pc : renderer_.scene().options().road_path.pieces) {
+      if (!(1.0 - pc.curvature_per_m * o.path_offset_m > 0.05)) {
+        throw std::invalid_argument("SequenceOptions: path_offset_m reaches a road piece's centre");
+      }
+    }
+  }
   Eigen::Vector2d p = o.start_xy_m;
   double yaw = o.start_yaw_rad;
   for (int k = 0; k < o.frames; ++k) {
-    if (k > 0) {
+    if (o.follow_road_path) {
+      const double s = path.arcLengthAfter(o.path_offset_m, o.path_start_m + k * o.speed_m_per_frame);
+      const RoadPath::Pose pose = path.poseAt(s);
+      p = pose.xy + o.path_offset_m * pose.normal();
+      yaw = pose.heading_rad;
+    } else if (k > 0) {
       // Constant speed and yaw rate: move along the mean heading of the step.
       const double mid = yaw + 0.5 * o.yaw_rate_rad_per_frame;
       p += o.speed_m_per_frame * Eigen::Vector2d(std::cos(mid), std::sin(mid));
       yaw += o.yaw_rate_rad_per_frame;
     }
+    Eigen::Vector2d att = Eigen::Vector2d::Zero();
+    if (o.attitude_pitch_rad != 0.0 || o.attitude_roll_rad != 0.0 || o.attitude_jitter_rad != 0.0) {
+      const uint64_t h = TextureNoise::mix64(TextureNoise::mix64(o.noise_seed ^ 0xA77171DEULL) +
+                                             static_cast<uint64_t>(k));
+      const double j1 = (static_cast<double>(h >> 32) / 4294967296.0 * 2.0 - 1.0) * o.attitude_jitter_rad;
+      const double j2 =
+          (static_cast<double>(h & 0xFFFFFFFFULL) / 4294967296.0 * 2.0 - 1.0) * o.attitude_jitter_rad;
+      const double sign = (k % 2 == 0) ? 1.0 : -1.0;
+      att = Eigen::Vector2d(sign * (o.attitude_pitch_rad + j1), -sign * (o.attitude_roll_rad + j2));
+    }
+    xy_yaw_.emplace_back(p.x(), p.y(), yaw);
+    perturbation_.push_back(att);
     SequenceFrame f;
     f.index = k;
     f.time_s = k * o.frame_period_s;
-    f.ground_T_left = cameraPose(renderer_.scene(), o, p.x(), p.y(), yaw);
+    f.ground_T_left = cameraPose(renderer_.scene(), o, p.x(), p.y(), yaw, att.x(), att.y());
     const double s = o.frames > 1 ? static_cast<double>(k) / (o.frames - 1) : 0.0;
     f.left.gain = o.gain_start + s * (o.gain_end - o.gain_start);
     f.left.bias_grey = o.left_bias_grey;
