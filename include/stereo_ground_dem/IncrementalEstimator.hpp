@@ -17,6 +17,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "stereo_ground_dem/DisparityPlaneFit.hpp"
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/MotionPredictor.hpp"
@@ -36,6 +37,7 @@ struct IncrementalEstimatorOptions {
   int fine_iterations = 3;                ///< ... at pyramid levels 0 and 1
   double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
   TrackingCheckOptions check;             ///< plausibility tests of a tracked frame
+  DisparityPlaneFitOptions ground_plane;  ///< the pair's dominant plane (attitude hypotheses)
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
@@ -52,7 +54,7 @@ struct IncrementalEstimatorOptions {
   /// frames (0: only on the first ones); about 5 ms each.
   int rectification_startup_pairs = 5;
   int rectification_check_period_frames = 10;
-  double max_init_std_m = 0.05;           ///< map heights less certain are re-extended, not trusted [m]
+  double max_init_std_m = 0.15;           ///< map heights less certain are re-extended, not trusted [m]
   /// When the velocity is unknown (first tracked frame, after a failure), translations along the
   /// optical axis from motion_search_min_m to motion_search_max_m (per nominal frame period) are
   /// tried at the coarsest level and the cheapest starts the Gauss-Newton: far from the minimum
@@ -68,15 +70,15 @@ struct IncrementalEstimatorOptions {
   /// A pre-alignment start is good enough when its cost per sample is below this times the usual
   /// one (running over good frames); otherwise the next hypothesis is tried.
   double hypothesis_accept_ratio = 1.3;
-  /// ... and when the previous image's median residual is below ratio * the stereo partner's +
-  /// margin (the stereo pair does not depend on the motion: a reference without history).
-  double temporal_residual_ratio = 1.5;
-  double temporal_residual_margin_grey = 1.0;
   /// Without a velocity, this many of the best-scoring search poses are aligned.
   int search_candidates = 3;
   /// 0: none; 1: the stereo-only finest level ends with an almost undamped step
   /// (SurfaceAlignerOptions::final_undamped_step); 2: every fine level.
-  int final_undamped_step = 1;
+  int final_undamped_step = 2;
+  /// The levels that estimate the motion use vertices up to this camera depth only (0: all): far
+  /// ground, seen by few pixels and held by the update constraint near its starting heights,
+  /// would otherwise pull the pose toward a surface that is merely extrapolated [m].
+  double motion_max_depth_m = 0.0;
   // input sanity (grey levels, 8-bit units)
   double min_mean_grey = 4.0;             ///< darker images are rejected
   double max_saturated_fraction = 0.5;    ///< more saturated pixels: rejected
@@ -112,6 +114,11 @@ struct FrameResult {
   std::vector<AlignmentReport> reports;  ///< per mesh level, coarse to fine
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   double prealign_cost = 0.0;            ///< motion-only pre-alignment cost per sample (best start)
+  /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
+  /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
+  /// residual far above it means the motion is wrong (TrackingCheck).
+  double stereo_residual_grey = 0.0;
+  double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).
@@ -163,6 +170,10 @@ class IncrementalEstimator {
   void addPairCheck(const StereoPairCheck& check);
   std::vector<Eigen::Isometry3d> rankedSearch(const ImagePyramid& left, double stamp_s) const;
   MotionPredictorOptions predictorOptions() const;
+  /// The pose whose height and attitude above the ground come from the pair's dominant plane
+  /// (DisparityPlaneFit on the sparse matches of `check`) and the map's local plane ahead, with
+  /// position and heading from `guess` (camera_T_ground). False when either plane is missing.
+  bool groundAnchoredPose(const StereoPairCheck& check, const Eigen::Isometry3d& guess, Eigen::Isometry3d* out) const;
 
   StereoRig rig_;
   IncrementalEstimatorOptions options_;

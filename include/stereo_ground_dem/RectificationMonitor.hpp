@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "stereo_ground_dem/StereoRig.hpp"
 #include "stereo_ground_dem/VerticalMisalignment.hpp"
@@ -65,6 +66,8 @@ struct StereoPairCheck {
   /// windows on the sheared ground give a spurious 0.001 px/px, as large as what it would measure.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
   double residual_std_px = 0.0;   ///< robust spread of the vertical offsets about the fit [px]
+  /// The consistent matches: (u, v) of the left pixel and the disparity [px at level 0].
+  std::vector<Eigen::Vector3f> points;
   double time_ms = 0.0;
   std::string problem;            ///< empty when the pair looks like a rectified stereo pair
   bool ok() const { return problem.empty(); }

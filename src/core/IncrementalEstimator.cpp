@@ -287,6 +287,62 @@ std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyr
 
 Eigen::Isometry3d IncrementalEstimator::predict(double stamp_s) const { return predictor_.predict(stamp_s); }
 
+bool IncrementalEstimator::groundAnchoredPose(const StereoPairCheck& check, const Eigen::Isometry3d& guess,
+                                              Eigen::Isometry3d* out) const {
+  const DisparityPlane plane = DisparityPlaneFit(options_.ground_plane).fit(check.points, rig_);
+  if (!plane.ok) return false;
+  // The map's plane z = p x + q y + c where the matched ground is: 4-15 m ahead of the guess.
+  const Eigen::Isometry3d g_T_c = guess.inverse();
+  Eigen::Vector3d fwd = g_T_c.linear().col(2);
+  fwd.z() = 0.0;
+  if (fwd.norm() < 1e-6) return false;
+  fwd.normalize();
+  const Eigen::Vector3d left(-fwd.y(), fwd.x(), 0.0);
+  const Eigen::Vector3d c0 = g_T_c.translation();
+  double xmin = 1e30, xmax = -1e30, ymin = 1e30, ymax = -1e30;
+  for (double a : {4.0, 15.0})
+    for (double b : {-6.0, 6.0}) {
+      const Eigen::Vector3d q = c0 + a * fwd + b * left;
+      xmin = std::min(xmin, q.x());
+      xmax = std::max(xmax, q.x());
+      ymin = std::min(ymin, q.y());
+      ymax = std::max(ymax, q.y());
+    }
+  const GroundGrid w = GroundGrid::covering(xmin, xmax, ymin, ymax, options_.stereo.grid_resolution_m);
+  Eigen::VectorXd h, info;
+  map_.sample(w, &h, &info);
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  int known = 0;
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    if (!std::isfinite(h[v])) continue;
+    const Eigen::Vector2d xy = w.position(v);
+    const Eigen::Vector2d rel = xy - c0.head<2>();
+    const double along = rel.dot(fwd.head<2>()), across = rel.dot(left.head<2>());
+    if (along < 4.0 || along > 15.0 || std::abs(across) > 6.0) continue;
+    const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
+    const double wt = std::min(info[v], 1e4) + 1.0;
+    ata += wt * a * a.transpose();
+    atb += wt * a * h[v];
+    ++known;
+  }
+  Eigen::Vector3d pqc(0.0, 0.0, c0.z() - plane.height_m);  // level, through the guess' ground
+  if (known >= 20 && ata.determinant() > 1e-9 * std::pow(ata.trace(), 3)) pqc = ata.ldlt().solve(atb);
+  const Eigen::Vector3d up_unnormalized(-pqc.x(), -pqc.y(), 1.0);
+  const Eigen::Vector3d up_g = up_unnormalized.normalized();
+  // The smallest rotation of the guess that puts the map's up on the plane's up in the camera.
+  const Eigen::Quaterniond corr = Eigen::Quaterniond::FromTwoVectors(guess.linear() * up_g, -plane.down);
+  const Eigen::Matrix3d r = corr.toRotationMatrix() * guess.linear();
+  // The camera centre over the guess' x, y at the plane's height above the map plane.
+  Eigen::Vector3d c = c0;
+  c.z() = pqc.x() * c.x() + pqc.y() * c.y() + pqc.z() + plane.height_m * up_unnormalized.norm();
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = r;
+  t.translation() = -r * c;
+  *out = t;
+  return t.matrix().allFinite();
+}
+
 FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Mat& right, double stamp_s,
                                                ImagePyramid::ColorOrder order) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -383,13 +439,18 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const StereoEstimatorOptions& so = options_.stereo;
   const double dt = predictor_.gap(stamp_s);
   // Starting poses: the predictor's hypotheses, or the best of its search grid without a velocity.
-  std::vector<Eigen::Isometry3d> starts;
+  std::vector<Eigen::Isometry3d> starts;  // modified below: not const
   if (predictor_.velocityKnown()) {
     starts = predictor_.hypotheses(stamp_s);
   } else {
     starts = rankedSearch(*pl, stamp_s);
+    Eigen::Isometry3d anchored;
+    if (groundAnchoredPose(stereo_.checkPair(*pl, *pr), starts.front(), &anchored)) {
+      starts.insert(starts.begin() + 1, anchored);
+    }
     for (const Eigen::Isometry3d& p : predictor_.attitudeSteps(starts.front())) starts.push_back(p);
   }
+  bool anchored_tried = !predictor_.velocityKnown();
   const Eigen::Isometry3d predicted = starts.front();  // camera_T_ground
   GroundGrid window = viewWindow(predicted);
   Eigen::VectorXd heights, info;
@@ -432,7 +493,18 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     prob.estimate_heights = false;
     double best = std::numeric_limits<double>::infinity();
     bool good = false;
-    for (size_t k = 0; k < starts.size() && !good; ++k) {
+    // Without a velocity (the first tracked frame, after a failure: rare) every start is tried;
+    // with one, the first good one ends the search.
+    const bool try_all = !predictor_.velocityKnown();
+    for (size_t k = 0; k < starts.size() && (try_all || !good); ++k) {
+      if (k == 2 && !anchored_tried) {
+        // The constant-velocity starts did not align: the attitude the ground itself shows.
+        anchored_tried = true;
+        Eigen::Isometry3d anchored;
+        if (groundAnchoredPose(stereo_.checkPair(*pl, *pr), starts[1], &anchored)) {
+          starts.insert(starts.begin() + 2, anchored);
+        }
+      }
       SurfaceState s;
       s.camera_T_ground = starts[k];
       s.heights = heights;
@@ -444,14 +516,11 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       res.reports.push_back(rep);
       const int samples = rep.valid_pixels + rep.outside_pixels;
       const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
-      // Good enough: the previous image agrees about as well as the stereo partner (which does
-      // not depend on the motion), and the cost is near the usual one when that is known.
-      const std::vector<double>& med = rep.target_median_abs_residual_grey;
-      const bool consistent = med.size() >= 2 && med[1] <= options_.temporal_residual_ratio * med[0] +
-                                                              options_.temporal_residual_margin_grey;
-      const bool usual = prealign_level_ <= 0.0 || cost <= options_.hypothesis_accept_ratio * prealign_level_;
+      // Good enough: the cost per sample near the usual one of good frames (unknown on the first
+      // tracked frames: then the first two starts are tried, or all without a velocity).
+      const bool usual = prealign_level_ > 0.0 ? cost <= options_.hypothesis_accept_ratio * prealign_level_ : k >= 1;
       if (cost < best) {
-        good = consistent && usual;
+        good = usual;
         best = cost;
         state.camera_T_ground = s.camera_T_ground;
         state.photometric = photo3;
@@ -489,8 +558,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   ao.max_iterations = ao_static.max_iterations = options_.fine_iterations;
   SurfaceAlignerOptions ao_coarse = ao, ao_static_coarse = ao_static;
   ao.final_undamped_step = options_.final_undamped_step >= 2;
-  ao_static.final_undamped_step = options_.final_undamped_step >= 1;
+  ao_static.final_undamped_step = options_.final_undamped_step == 1 || options_.final_undamped_step == 2;
   ao_coarse.max_iterations = ao_static_coarse.max_iterations = options_.iterations_per_level;
+  if (options_.motion_max_depth_m > 0.0) {
+    ao.max_depth_m = std::min(ao.max_depth_m, options_.motion_max_depth_m);
+    ao_coarse.max_depth_m = std::min(ao_coarse.max_depth_m, options_.motion_max_depth_m);
+  }
   const SurfaceAligner aligner_motion(ao), aligner_static(ao_static);
   const SurfaceAligner aligner_motion_coarse(ao_coarse), aligner_static_coarse(ao_static_coarse);
   AlignmentProblem prob;
@@ -521,6 +594,10 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
                                            : (temporal ? aligner_motion : aligner_static);
     last = aligner.align(prob, level_state);
     res.reports.push_back(last);
+    if (temporal && l == options_.temporal_finest_level && last.target_median_abs_residual_grey.size() >= 2) {
+      res.stereo_residual_grey = last.target_median_abs_residual_grey[0];
+      res.temporal_residual_grey = last.target_median_abs_residual_grey[1];
+    }
     state.camera_T_ground = level_state.camera_T_ground;
     state.heights = level_state.heights;
     for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = level_state.photometric[i];
@@ -609,9 +686,11 @@ void IncrementalEstimator::advance(const Eigen::Isometry3d& ground_T_camera, dou
 FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const ImagePyramid& right, double stamp_s,
                                                 FrameResult* out, std::unique_ptr<ImagePyramid>& pl,
                                                 std::unique_ptr<ImagePyramid>& pr) {
-  // Re-initialization from the stereo pair: the stereo mode measures the camera's height, pitch
-  // and roll relative to the ground in front of it; x, y and heading come from the prediction
-  // (they drift, and that is counted). The surface seen now replaces the map under it.
+  // Re-initialization from the stereo pair: the stereo mode measures the surface and the camera's
+  // height, pitch and roll relative to the ground in front of it; x, y and heading come from the
+  // prediction (they drift, and that is counted). The camera is placed against the map's local
+  // plane there (groundAnchoredPose: a slope stays a slope), else on a level plane at the map's
+  // height under it.
   FrameResult& res = *out;
   const Eigen::Isometry3d predicted = predict(stamp_s);
   const StereoResult sr = stereo_.estimate(left, right);
@@ -649,6 +728,8 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   g_T_local.linear().col(1) = Eigen::Vector3d::UnitZ().cross(fwd);
   g_T_local.linear().col(2) = Eigen::Vector3d::UnitZ();
   g_T_local.translation() = Eigen::Vector3d(g_T_c_pred.translation().x(), g_T_c_pred.translation().y(), ground_z);
+  Eigen::Isometry3d anchored;
+  if (groundAnchoredPose(sr.pair_check, predicted, &anchored)) g_T_local = anchored.inverse() * sr.ground_T_camera.inverse();
   const Eigen::Isometry3d ground_T_camera = g_T_local * sr.ground_T_camera;
   // Resample the stereo surface on the map's lattice.
   const GroundGrid window = viewWindow(ground_T_camera.inverse());

@@ -96,6 +96,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("rotation_hypothesis_rad", &e.rotation_hypothesis_rad, "attitude step of the rotation hypotheses [rad]", true);
   d("hypothesis_accept_ratio", &e.hypothesis_accept_ratio,
     "a start is good enough below this times the usual pre-alignment cost", true);
+  d("max_init_std_m", &e.max_init_std_m, "map heights less certain start from the extended surface [m]", true);
+  d("motion_max_depth_m", &e.motion_max_depth_m, "levels estimating the motion use vertices up to this depth (0: all) [m]", true);
   i("final_undamped_step", &e.final_undamped_step, "almost undamped last step: 0 none, 1 finest level, 2 fine levels", true);
   i("search_candidates", &e.search_candidates, "search poses aligned when the velocity is unknown", true);
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);

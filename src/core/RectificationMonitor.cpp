@@ -186,6 +186,10 @@ StereoPairCheck RectificationMonitor::measure(const cv::Mat& left, const cv::Mat
     }
   }
   out.matches = static_cast<int>(du.size());
+  out.points.reserve(du.size());
+  for (size_t i = 0; i < du.size(); ++i) {
+    out.points.emplace_back(static_cast<float>(ur[i] + du[i]), static_cast<float>(vl[i]), static_cast<float>(du[i]));
+  }
   for (double d : du) {
     if (d > o.min_disparity_px) ++out.positive;
     if (d < -o.min_disparity_px) ++out.negative;

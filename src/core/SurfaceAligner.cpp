@@ -208,6 +208,11 @@ class LevelSolver {
 
   int activeCount() const { return static_cast<int>(active_.size()); }
   void setDampingScale(double s) { damping_scale_ = s; }
+  /// The damping of control c: reduced (damping_scale_) only where its data information exceeds
+  /// its update weight, so the far edges seen by a few pixels keep their damping.
+  double dampingScale(double data_information, int c) const {
+    return damping_scale_ < 1.0 && data_information >= opt_.undamped_min_information_ratio * mu_[c] ? damping_scale_ : 1.0;
+  }
   int workingTriangles() const { return static_cast<int>(tris_.size()); }
   bool empty() const { return tris_.empty(); }
 
@@ -836,13 +841,14 @@ class LevelSolver {
     Eigen::MatrixXd hcg;
     const SpMat* hcc = nullptr;
     if (identity_basis_) {
-      for (int c = 0; c < control_count_; ++c) values[diag_index_[static_cast<size_t>(c)]] += damping_scale_ * mu_[c];
+      for (int c = 0; c < control_count_; ++c) values[diag_index_[static_cast<size_t>(c)]] += dampingScale(data_diag[c], c) * mu_[c];
       hcc = &hzz;
       gc = gz;
       hcg = hzg;
     } else {
       hcc_ = basis_t_ * hzz * basis_;
-      for (int c = 0; c < control_count_; ++c) hcc_.coeffRef(c, c) += damping_scale_ * mu_[c];
+      const Eigen::VectorXd control_data = basis_t_ * data_diag;
+      for (int c = 0; c < control_count_; ++c) hcc_.coeffRef(c, c) += dampingScale(control_data[c], c) * mu_[c];
       hcc = &hcc_;
       gc = basis_t_ * gz;
       hcg = basis_t_ * hzg;
