@@ -22,6 +22,7 @@
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/MotionPredictor.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
+#include "stereo_ground_dem/TemporalConsistency.hpp"
 #include "stereo_ground_dem/TrackingCheck.hpp"
 
 namespace stereo_ground_dem {
@@ -38,6 +39,7 @@ struct IncrementalEstimatorOptions {
   double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
   TrackingCheckOptions check;             ///< plausibility tests of a tracked frame
   DisparityPlaneFitOptions ground_plane;  ///< the pair's dominant plane (attitude hypotheses)
+  TemporalConsistencyOptions temporal_consistency;  ///< moving texture skipped by the temporal pairs
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
@@ -117,6 +119,7 @@ struct FrameResult {
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
   /// residual far above it means the motion is wrong (TrackingCheck).
+  int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   double stereo_residual_grey = 0.0;
   double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level

@@ -97,6 +97,10 @@ struct AlignerTarget {
   /// excluded), e.g. the previous frame's obstacle pixels for a temporal pair: ground seen now
   /// where a car stood (or moved away from) is not compared with the car.
   const std::vector<cv::Mat>* excluded = nullptr;
+  /// Optional per pyramid level: REFERENCE pixels this pair alone skips (CV_8U, nonzero =
+  /// skipped), e.g. ground whose texture moved between the frames (a moving shadow) for a
+  /// temporal pair, while the stereo pair still uses it.
+  const std::vector<cv::Mat>* reference_excluded = nullptr;
 };
 
 /// What is estimated; updated in place by align().

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+
+#include "stereo_ground_dem/TemporalConsistency.hpp"
 #include <sstream>
 #include <stdexcept>
 
@@ -573,6 +575,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prob.prior = options_.use_map_prior ? &prior : nullptr;
   prob.excluded = &obstacles.excluded;
   AlignmentReport last;
+  TemporalInconsistency moving;  // ground whose texture moved (the temporal pairs skip it)
+  bool consistency_checked = false;
   for (int l = std::min(so.mesh_levels, options_.tracking_levels) - 1; l >= 0; --l) {
     prob.level = l;
     const bool temporal = l >= options_.temporal_finest_level;
@@ -602,6 +606,24 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     state.heights = level_state.heights;
     for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = level_state.photometric[i];
     if (last.degenerate) break;
+    if (temporal && l == options_.temporal_finest_level && !consistency_checked &&
+        options_.temporal_consistency.enabled) {
+      // Ground whose texture moved (a moving shadow): flag it, and estimate this level again
+      // with the temporal pairs skipping it.
+      consistency_checked = true;
+      const int tl = std::min(options_.temporal_consistency.level, pl->levels() - 1);
+      const cv::Mat rho = stereo_.surfaceInverseDepth(*pl, window, state.heights, state.camera_T_ground, tl);
+      const cv::Mat ex = static_cast<int>(obstacles.excluded.size()) > tl ? obstacles.excluded[static_cast<size_t>(tl)] : cv::Mat();
+      moving = TemporalConsistency(options_.temporal_consistency)
+                   .detect(*pl, *pr, *prev_left_, rig_, rho, ex, ground_T_camera_.inverse() * state.camera_T_ground.inverse(),
+                           state.photometric[0], state.photometric[1], stereo_.rectification());
+      res.moving_pixels = moving.pixels;
+      if (!moving.masks.empty()) {
+        prev_l.reference_excluded = &moving.masks;
+        prev_r.reference_excluded = &moving.masks;
+        ++l;  // this level once more
+      }
+    }
   }
   std::copy_n(state.photometric.begin(), 3, res.photometric.begin());
   res.median_abs_residual_grey = last.median_abs_residual_grey;

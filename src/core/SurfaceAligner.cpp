@@ -132,6 +132,7 @@ struct PairContext {
   bool row_shift = false;         ///< the target has a row shift (AlignerTarget::row_shift_px)
   std::array<float, 6> shift{};   ///< its coefficients in this level's pixels
   const cv::Mat* target_excluded = nullptr;  ///< the target's excluded pixels at this level
+  const cv::Mat* reference_excluded = nullptr;  ///< reference pixels this pair skips at this level
   bool world;               ///< world-fixed pair with motion estimated: accumulate Jm
   bool checkerboard;        ///< use every other pixel only
   int photo_index = -1;     ///< first global index of (dg, db), -1 when fixed
@@ -242,6 +243,13 @@ class LevelSolver {
       c.photo_index = photo_index_[j];
       c.photometric = s.photometric[j];
       c.image = &t.pyramid->level(prob_.level).image;
+      if (t.reference_excluded && static_cast<int>(t.reference_excluded->size()) > prob_.level &&
+          !(*t.reference_excluded)[static_cast<size_t>(prob_.level)].empty()) {
+        c.reference_excluded = &(*t.reference_excluded)[static_cast<size_t>(prob_.level)];
+        if (c.reference_excluded->size() != ref_->image.size() || c.reference_excluded->type() != CV_8U) {
+          throw std::invalid_argument("SurfaceAligner: a target's reference mask does not match the pyramid level");
+        }
+      }
       if (t.excluded && static_cast<int>(t.excluded->size()) > prob_.level &&
           !(*t.excluded)[static_cast<size_t>(prob_.level)].empty()) {
         c.target_excluded = &(*t.excluded)[static_cast<size_t>(prob_.level)];
@@ -524,6 +532,7 @@ class LevelSolver {
     const float ifx = static_cast<float>(1.0 / rig_.fx), ify = static_cast<float>(1.0 / rig_.fy);
     const std::array<float, 6>& sh = p.shift;
     const cv::Mat* tex = p.target_excluded;
+    const uint8_t* rex = p.reference_excluded ? p.reference_excluded->ptr<uint8_t>(v) : nullptr;
     PairAccumulator& pa = ch->pair[j];
     double* tri_acc = ch->tri[j].data();
     // Sums in double: a triangle's 3x3 block is nearly rank-deficient (its pixels' rays are
@@ -544,6 +553,7 @@ class LevelSolver {
     for (size_t k = 0; k < n; ++k) {
       const int u = px.u[k];
       if (p.checkerboard && (((u & 1) != 0) != odd_row)) continue;
+      if (rex && rex[u]) continue;
       const int slot = px.slot[k];
       const auto& h = hom[j * ns + static_cast<size_t>(slot)];
       const float uf = static_cast<float>(u);

@@ -231,7 +231,7 @@ int runSequence(const Args& a) {
   std::ofstream timing(a.out + "/timing.csv");
   timing << "frame,ms\n";
   std::ofstream frames(a.out + "/frames.csv");
-  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,message\n";
+  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,message\n";
   std::vector<Eigen::Isometry3d> poses;
   std::vector<double> stamps, ms_all;
   std::vector<Eigen::Vector2d> xy;
@@ -258,7 +258,7 @@ int runSequence(const Args& a) {
            << fr.median_abs_residual_grey << "," << fr.fused_vertices << "," << fr.obstacle_pixels << ","
            << fr.photometric[0].gain << "," << fr.photometric[0].bias_grey << ","
            << fr.rectification.maxAbsPx(seq.rig(), 0.0) << "," << fr.stereo_residual_grey << ","
-           << fr.temporal_residual_grey << "," << msg << "\n";
+           << fr.temporal_residual_grey << "," << fr.moving_pixels << "," << msg << "\n";
     if (!a.quiet) {
       const Eigen::Vector3d t = fr.camera0_T_camera.translation();
       std::printf("frame %4d/%d %7.1f ms  %-14s  x %7.2f y %7.2f z %7.2f m%s%s\n", i + 1, n, fr.time_ms,
