@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "stereo_ground_dem/DisparityPlaneFit.hpp"
 #include "stereo_ground_dem/GroundGrid.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/ObstacleDetector.hpp"
@@ -54,6 +55,9 @@ struct StereoEstimatorOptions {
   /// e.g. c3 = -0.15, c4 = 0.13 px on the bump scene; both KITTI rigs show 1.4 px).
   double min_rectification_correction_px = 0.2;
   RectificationMonitorOptions rectification;
+  /// The dominant plane of the sparse matches: a pair without a plausible ground plane in view is
+  /// refused, and the start-up plane fit starts from this plane instead of the nominal pose.
+  DisparityPlaneFitOptions ground_plane;
 
   /// `aligner` with the working range (min_range_m, max_range_m, max_lateral_m) filled in.
   SurfaceAlignerOptions alignerOptions() const;
@@ -91,9 +95,14 @@ class StereoEstimator {
 
   /// Only the start-up plane: returns ground_T_camera whose ground plane is the fitted plane, and
   /// the gain/bias estimate.
+  /// `start` (optional): camera_T_ground of the first guess, instead of the nominal pose.
   bool fitGroundPlane(const ImagePyramid& left, const ImagePyramid& right, Eigen::Isometry3d* ground_T_camera,
                       PhotometricParams* photometric, std::vector<AlignmentReport>* reports,
-                      std::string* message) const;
+                      std::string* message, const Eigen::Isometry3d* start = nullptr) const;
+
+  /// camera_T_ground of a camera `height_m` above a plane whose unit normal toward it points
+  /// along -down (camera frame): G's z along the plane's up, x along the optical axis projected.
+  static Eigen::Isometry3d poseAbovePlane(const Eigen::Vector3d& down, double height_m);
 
   /// The disparity [px] the surface implies at every left pixel (0 where no surface), level 0.
   cv::Mat impliedDisparity(const StereoResult& result, const ImagePyramid& left) const;
@@ -156,7 +165,8 @@ class StereoEstimator {
   int pyramidLevels() const;
 
  private:
-  StereoResult estimateWith(const ImagePyramid& left, const ImagePyramid& right, const VerticalMisalignment& m) const;
+  StereoResult estimateWith(const ImagePyramid& left, const ImagePyramid& right, const VerticalMisalignment& m,
+                            const Eigen::Isometry3d* start) const;
 
   StereoRig rig_;
   StereoEstimatorOptions options_;

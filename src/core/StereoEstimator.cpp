@@ -101,10 +101,11 @@ PhotometricParams StereoEstimator::initialPhotometric(const ImagePyramid& left, 
 
 bool StereoEstimator::fitGroundPlane(const ImagePyramid& left, const ImagePyramid& right,
                                      Eigen::Isometry3d* ground_T_camera, PhotometricParams* photometric,
-                                     std::vector<AlignmentReport>* reports, std::string* message) const {
+                                     std::vector<AlignmentReport>* reports, std::string* message,
+                                     const Eigen::Isometry3d* start) const {
   const StereoEstimatorOptions& o = options_;
   const Eigen::Isometry3d camera_T_ground0 =
-      nominalCameraPose(o.nominal_height_m, o.nominal_pitch_down_rad, o.nominal_roll_rad);
+      start ? *start : nominalCameraPose(o.nominal_height_m, o.nominal_pitch_down_rad, o.nominal_roll_rad);
   const double res = std::max(1.0, o.grid_resolution_m);
   const GroundGrid grid = GroundGrid::covering(0.0, o.plane_fit_max_range_m / std::cos(std::min(0.5, std::abs(o.nominal_pitch_down_rad))) + 2.0 * res,
                                                -o.max_lateral_m, o.max_lateral_m, res);
@@ -251,19 +252,41 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
     res.message = check.problem;
     return res;
   }
-  StereoResult res2 = estimateWith(left, right, modelled(rectification_set_ ? rectification_ : check.fit));
+  const DisparityPlane plane = DisparityPlaneFit(o.ground_plane).fit(check.points, rig_);
+  if (!plane.ok) {
+    res.pair_check = check;
+    res.message = "no ground in view: " + plane.message;
+    return res;
+  }
+  const Eigen::Isometry3d start = poseAbovePlane(plane.down, plane.height_m);
+  StereoResult res2 = estimateWith(left, right, modelled(rectification_set_ ? rectification_ : check.fit), &start);
   res2.pair_check = check;
   return res2;
 }
 
+Eigen::Isometry3d StereoEstimator::poseAbovePlane(const Eigen::Vector3d& down, double height_m) {
+  const Eigen::Vector3d up = -down.normalized();          // G's z in the camera frame
+  Eigen::Vector3d xaxis = Eigen::Vector3d::UnitZ() - up * up.z();  // optical axis on the plane
+  if (xaxis.norm() < 1e-6) xaxis = Eigen::Vector3d::UnitX();
+  xaxis.normalize();
+  const Eigen::Vector3d yaxis = up.cross(xaxis);
+  Eigen::Isometry3d camera_T_ground = Eigen::Isometry3d::Identity();
+  camera_T_ground.linear().col(0) = xaxis;
+  camera_T_ground.linear().col(1) = yaxis;
+  camera_T_ground.linear().col(2) = up;
+  // the camera centre is height_m above the origin: camera_T_ground * (0, 0, h) = 0
+  camera_T_ground.translation() = -height_m * up;
+  return camera_T_ground;
+}
+
 StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const ImagePyramid& right,
-                                           const VerticalMisalignment& m) const {
+                                           const VerticalMisalignment& m, const Eigen::Isometry3d* start) const {
   const StereoEstimatorOptions& o = options_;
   StereoResult res;
   res.rectification = m;
   StereoEstimator local = *this;  // fitGroundPlane models the estimator's own misalignment
   local.rectification_ = m;
-  if (!local.fitGroundPlane(left, right, &res.ground_T_camera, &res.photometric, &res.reports, &res.message)) {
+  if (!local.fitGroundPlane(left, right, &res.ground_T_camera, &res.photometric, &res.reports, &res.message, start)) {
     return res;
   }
 
