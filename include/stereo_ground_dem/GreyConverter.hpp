@@ -15,6 +15,7 @@
 /// maximum of the first 16-bit image converted (the smallest of 8, 10, 12, 14 and 16 bits that
 /// holds it) and kept for every later image, so that the scale never changes within a run.
 /// A very dark first image of 12-bit data may be detected as 10 bits: set `image_bit_depth` then.
+/// Samples above the bit depth's maximum come out above 255 grey (and count as saturated).
 
 #include <opencv2/core.hpp>
 #include <string>
