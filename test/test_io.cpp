@@ -754,3 +754,24 @@ TEST_F(IoTest, KittiSequenceChoosesTheCameraPair) {
   fs::remove_all(path("raw/image_00"));
   EXPECT_EQ(sgd::KittiSequence::open(path("raw")).cameras(), sgd::CalibrationReader::CameraPair::kColor);
 }
+
+TEST_F(IoTest, KittiOdometryColourFoldersUseP2P3) {
+  // a KITTI odometry calib.txt with all four cameras and only the colour folders image_2/image_3
+  const cv::Mat colour(60, 80, CV_8UC3, cv::Scalar(90, 90, 90));
+  for (const char* d : {"odo/image_2", "odo/image_3"}) {
+    fs::create_directories(path(d));
+    cv::imwrite(path(d) + "/000000.png", colour);
+  }
+  spit(path("odo/calib.txt"),
+       "P0: 50 0 40 0 0 50 30 0 0 0 1 0\nP1: 50 0 40 -27 0 50 30 0 0 0 1 0\n"
+       "P2: 50 0 40 2 0 50 30 0.1 0 0 1 0\nP3: 50 0 40 -24 0 50 30 0.2 0 0 1 0\nTr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  const sgd::KittiSequence s = sgd::KittiSequence::open(path("odo"));
+  EXPECT_EQ(s.cameras(), sgd::CalibrationReader::CameraPair::kColor);
+  EXPECT_NEAR(s.rig().baseline_m, 0.52, 1e-12);  // P2/P3, not P0/P1 (0.54)
+  EXPECT_EQ(s.rig().width, 80);
+  // a calib.txt with the grey pair only does not serve colour folders: an error, not P0/P1
+  spit(path("odo/calib.txt"), "P0: 50 0 40 0 0 50 30 0 0 0 1 0\nP1: 50 0 40 -27 0 50 30 0 0 0 1 0\n");
+  EXPECT_EQ(thrownMessage([&] { sgd::KittiSequence::open(path("odo")); }),
+            "sequence '" + path("odo") + "': " + path("odo") +
+                "/calib.txt has no calibration for the cameras of the image folders found (image_2/image_3)");
+}
