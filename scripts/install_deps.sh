@@ -24,6 +24,8 @@ PKGS=(
   rosbash xvfb xauth imagemagick
   # scripts/ros_realtime_check.py subscribes to sensor_msgs/Image
   python3-sensor-msgs
+  # the zoo test and scripts/evaluate_zoo.py score the real clip with ../shared/tools/lidar_dem_eval.py
+  python3-scipy python3-matplotlib
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -9,53 +9,24 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include "offline_runner.hpp"
 #include "stereo_ground_dem/io/DemMetadata.hpp"
 #include "stereo_ground_dem/io/DisparityPng.hpp"
 #include "stereo_ground_dem/io/GeoTiff.hpp"
 
 using namespace stereo_ground_dem;
+using namespace sgd_test;
 
 namespace {
 
-const std::string kSample = std::string(SGD_SOURCE_DIR) + "/data/kitti_seq06_sample";
+class DemOffline : public TempDirTest {};
 
-struct Outcome {
-  int status;
-  std::string err;
-  std::string out;
-};
-
-Outcome run(const std::string& args) {
-  const std::string err_file = "/tmp/sgd_offline_err.txt", out_file = "/tmp/sgd_offline_out.txt";
-  const std::string cmd = std::string(DEM_OFFLINE) + " " + args + " >" + out_file + " 2>" + err_file;
-  const int raw = std::system(cmd.c_str());
-  Outcome r;
-  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  std::ifstream e(err_file), o(out_file);
-  std::stringstream se, so;
-  se << e.rdbuf();
-  so << o.rdbuf();
-  r.err = se.str();
-  r.out = so.str();
-  return r;
-}
-
-bool exists(const std::string& p) {
-  struct stat st {};
-  return stat(p.c_str(), &st) == 0;
-}
-
-int lines(const std::string& s) {
-  int n = 0;
-  for (char c : s) n += c == '\n';
-  return n;
-}
+bool exists(const std::string& p) { return fs::exists(p); }
 
 }  // namespace
 
-TEST(DemOffline, OnePairWritesTheDemOnRealKitti) {
-  const std::string out = "/tmp/sgd_test_pair";
-  std::system(("rm -rf " + out).c_str());
+TEST_F(DemOffline, OnePairWritesTheDemOnRealKitti) {
+  const std::string out = path("pair");
   const Outcome r = run("--left " + kSample + "/image_l/000000.png --right " + kSample + "/image_r/000000.png --calib " +
                     kSample + "/calib.txt --out " + out);
   ASSERT_EQ(r.status, 0) << r.err;
@@ -92,9 +63,8 @@ TEST(DemOffline, OnePairWritesTheDemOnRealKitti) {
   EXPECT_EQ(d.at<float>(50, 650), 0.0f);  // sky: none
 }
 
-TEST(DemOffline, SequenceModeOnTheBundledSample) {
-  const std::string out = "/tmp/sgd_test_seq";
-  std::system(("rm -rf " + out).c_str());
+TEST_F(DemOffline, SequenceModeOnTheBundledSample) {
+  const std::string out = path("seq");
   const Outcome r = run("--sequence " + kSample + " --out " + out + " --frames 4 --quiet");
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* f : {"dem.tif", "dem.yaml", "trajectory_kitti.txt", "trajectory_tum.txt", "timing.csv",
@@ -116,41 +86,41 @@ TEST(DemOffline, SequenceModeOnTheBundledSample) {
   EXPECT_NEAR(z_last, 3.576, 0.1);  // KITTI ground truth of frame 3: 3.576 m forward
 }
 
-TEST(DemOffline, BadInputGivesOneLineAndNonZeroExit) {
+TEST_F(DemOffline, BadInputGivesOneLineAndNonZeroExit) {
   const std::string l = kSample + "/image_l/000000.png", rgt = kSample + "/image_r/000000.png",
                     c = kSample + "/calib.txt";
   // missing file
-  Outcome r = run("--left /nonexistent.png --right " + rgt + " --calib " + c + " --out /tmp/sgd_bad");
+  Outcome r = run("--left " + path("nonexistent.png") + " --right " + rgt + " --calib " + c + " --out " + path("bad"));
   EXPECT_NE(r.status, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("cannot read image"), std::string::npos) << r.err;
   // unreadable image (a text file)
-  r = run("--left " + c + " --right " + rgt + " --calib " + c + " --out /tmp/sgd_bad");
+  r = run("--left " + c + " --right " + rgt + " --calib " + c + " --out " + path("bad"));
   EXPECT_NE(r.status, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
   // size mismatch
-  const std::string small = "/tmp/sgd_small.png";
+  const std::string small = path("small.png");
   cv::imwrite(small, cv::Mat(100, 200, CV_8U, cv::Scalar(90)));
-  r = run("--left " + l + " --right " + small + " --calib " + c + " --out /tmp/sgd_bad");
+  r = run("--left " + l + " --right " + small + " --calib " + c + " --out " + path("bad"));
   EXPECT_NE(r.status, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("differ in size"), std::string::npos) << r.err;
   // bad calibration
-  const std::string bad_calib = "/tmp/sgd_bad_calib.txt";
+  const std::string bad_calib = path("bad_calib.txt");
   std::ofstream(bad_calib) << "P0: 700 0 600 0 0 700 180 0 0 0 1 0\nP1: 700 0 600 380 0 700 180 0 0 0 1 0\n";
-  r = run("--left " + l + " --right " + rgt + " --calib " + bad_calib + " --out /tmp/sgd_bad");
+  r = run("--left " + l + " --right " + rgt + " --calib " + bad_calib + " --out " + path("bad"));
   EXPECT_NE(r.status, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("baseline"), std::string::npos) << r.err;
   // bad arguments and a bad parameter file
-  r = run("--sequence /nonexistent --out /tmp/sgd_bad");
+  r = run("--sequence " + path("nonexistent") + " --out " + path("bad"));
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.err.find("is not a directory"), std::string::npos) << r.err;
-  const std::string bad_cfg = "/tmp/sgd_bad_cfg.yaml";
+  const std::string bad_cfg = path("bad_cfg.yaml");
   std::ofstream(bad_cfg) << "smoothnes_weight: 3\n";
-  r = run("--sequence " + kSample + " --out /tmp/sgd_bad --config " + bad_cfg);
+  r = run("--sequence " + kSample + " --out " + path("bad") + " --config " + bad_cfg);
   EXPECT_NE(r.status, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("unknown parameter 'smoothnes_weight'"), std::string::npos) << r.err;
   r = run("--frames 3");
   EXPECT_EQ(r.status, 2);

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "stereo_ground_dem/GroundGrid.hpp"
@@ -79,4 +80,33 @@ TEST(GroundGrid, RejectsNonNestedGrids) {
   odd.col0 = 1;
   EXPECT_FALSE(odd.isCoarsenableBy(2));
   EXPECT_THROW(odd.coarsened(2), std::invalid_argument);
+}
+
+TEST(GroundGrid, CoveringRefusesExtentsBeyondIntRange) {
+  const auto message = [](double x0, double x1, double y0, double y1, double res, int align) -> std::string {
+    try {
+      GroundGrid::covering(x0, x1, y0, y1, res, align);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "<accepted>";
+  };
+  // 1e12 m at 0.5 m would be 2e12 columns: int overflow before the check existed
+  EXPECT_EQ(message(0.0, 1e12, -5.0, 5.0, 0.5, 1),
+            "GroundGrid::covering: extent x [0, 1e+12] y [-5, 5] m at 0.5 m (align 1) is out of range: lattice "
+            "indices must be within +-268435456 and the grid at most 268435456 vertices");
+  EXPECT_NE(message(-1e9, -1e9 + 10, 0, 10, 0.5, 1).find("is out of range"), std::string::npos);      // far away
+  EXPECT_NE(message(0, 100000, 0, 100000, 0.5, 1).find("is out of range"), std::string::npos);        // 4e10 vertices
+  EXPECT_NE(message(0, 10, 0, 10, 1e-12, 1).find("is out of range"), std::string::npos);              // tiny cells
+  EXPECT_NE(message(-INFINITY, 10, 0, 10, 0.5, 1).find("is out of range"), std::string::npos);
+  EXPECT_EQ(message(NAN, 10, 0, 10, 0.5, 1), "GroundGrid::covering: invalid extent, resolution or alignment");
+  EXPECT_EQ(message(0, 10, 0, 10, NAN, 1), "GroundGrid::covering: invalid extent, resolution or alignment");
+  EXPECT_EQ(message(0, 10, 0, 10, 0.5, 0), "GroundGrid::covering: invalid extent, resolution or alignment");
+  // the largest accepted grids still index inside int
+  const GroundGrid big = GroundGrid::covering(0.0, 8000.0, 0.0, 8000.0, 0.5, 8);
+  EXPECT_EQ(big.cols, 16001);
+  EXPECT_EQ(big.vertexCount(), 16001 * 16001);
+  const GroundGrid far = GroundGrid::covering(1e8, 1e8 + 10, 0, 10, 0.5, 8);
+  EXPECT_EQ(far.col0, 200000000);
+  EXPECT_EQ(far.cols, 25);
 }

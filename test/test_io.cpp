@@ -12,7 +12,10 @@
 #include <string>
 #include <vector>
 
+#include "stereo_ground_dem/GreyConverter.hpp"
 #include "stereo_ground_dem/io/DemMetadata.hpp"
+#include "stereo_ground_dem/io/ImageFileReader.hpp"
+#include "stereo_ground_dem/io/KittiSequence.hpp"
 #include "stereo_ground_dem/io/DemPicture.hpp"
 #include "stereo_ground_dem/io/DisparityPng.hpp"
 #include "stereo_ground_dem/io/GeoTiff.hpp"
@@ -480,6 +483,31 @@ TEST(DemPicture, OverlayColoursOnlyPixelsWithValues) {
                std::invalid_argument);
 }
 
+TEST(DemPicture, OverlayTakesEveryCameraImageType) {
+  cv::Mat values(40, 600, CV_32FC1, cv::Scalar(0.0f));
+  values(cv::Rect(100, 10, 50, 20)).setTo(30.0f);
+  const cv::Mat bgra(40, 600, CV_8UC4, cv::Scalar(128, 128, 128, 3));
+  const cv::Mat g12(40, 600, CV_16UC1, cv::Scalar(2056));  // 12-bit: 2056 * 255 / 4095 = 128
+  const cv::Mat f(40, 600, CV_32FC1, cv::Scalar(128.0f));
+  const cv::Mat c16(40, 600, CV_16UC3, cv::Scalar(2056, 2056, 2056));
+  for (const cv::Mat& image : {bgra, g12, f, c16}) {
+    const cv::Mat pic = sgd::DemPicture::overlayOnImage(image, values, 0.0, 40.0, "disparity [px]");
+    ASSERT_EQ(pic.type(), CV_8UC3);
+    EXPECT_EQ(pic.at<cv::Vec3b>(35, 500), cv::Vec3b(128, 128, 128)) << sgd::GreyConverter::typeName(image.type());
+  }
+  // a 16-bit image with its bit depth given: 2056 of 16 bits is dark
+  sgd::DemPictureOptions o;
+  o.image_bit_depth = 16;
+  EXPECT_EQ(sgd::DemPicture::overlayOnImage(g12, values, 0.0, 40.0, "d", o).at<cv::Vec3b>(35, 500), cv::Vec3b(8, 8, 8));
+  try {
+    sgd::DemPicture::overlayOnImage(cv::Mat(40, 600, CV_8UC2), values, 0.0, 40.0, "d");
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "DemPicture::overlayOnImage: unsupported image type CV_8UC2 (accepted: CV_8UC1/3/4, "
+                           "CV_16UC1/3/4, CV_32FC1)");
+  }
+}
+
 TEST(DemPicture, RobustRangeIgnoresOutliersAndNan) {
   cv::Mat l(1, 100, CV_32FC1);
   for (int i = 0; i < 100; ++i) l.at<float>(0, i) = static_cast<float>(i);
@@ -650,4 +678,100 @@ TEST_F(IoTest, MalformedTrajectoryLinesThrowWithLineNumber) {
   EXPECT_NE(msg.find(tum + ":1:"), std::string::npos) << msg;
 
   EXPECT_THROW(sgd::TrajectoryWriter::readKitti(path("missing.txt")), std::runtime_error);
+}
+
+// ------------------------------------------------------------------------------- ImageFileReader
+
+TEST_F(IoTest, ImageFileReaderNamesEveryProblem) {
+  const cv::Mat image(50, 60, CV_16UC1, cv::Scalar(1000));
+  ASSERT_TRUE(cv::imwrite(path("ok.png"), image));
+  std::string why = "stale";
+  const cv::Mat back = sgd::ImageFileReader::read(path("ok.png"), &why);
+  EXPECT_EQ(back.type(), CV_16UC1);
+  EXPECT_EQ(why, "");
+  const std::string png = slurp(path("ok.png"));
+  const auto problem = [&](const std::string& name, const std::string& bytes) {
+    spit(path(name), bytes);
+    std::string w;
+    EXPECT_TRUE(sgd::ImageFileReader::read(path(name), &w).empty()) << name;
+    return w;
+  };
+  EXPECT_EQ(problem("empty.png", ""), "cannot read image '" + path("empty.png") + "' (empty file)");
+  EXPECT_EQ(problem("cut.png", png.substr(0, 40)),
+            "cannot read image '" + path("cut.png") + "' (truncated PNG (ends inside a chunk header at byte 33))");
+  EXPECT_EQ(problem("cut2.png", png.substr(0, 60)),
+            "cannot read image '" + path("cut2.png") + "' (truncated PNG (chunk at byte 33 runs past the end of the file))");
+  EXPECT_EQ(problem("noend.png", png.substr(0, png.size() - 12)),
+            "cannot read image '" + path("noend.png") + "' (truncated PNG (ends inside a chunk header at byte " +
+                std::to_string(png.size() - 12) + "))");
+  std::string flipped = png;
+  flipped[45] = static_cast<char>(flipped[45] ^ 1);
+  EXPECT_EQ(problem("flip.png", flipped),
+            "cannot read image '" + path("flip.png") + "' (corrupt PNG (CRC mismatch in the IDAT chunk at byte 33))");
+  EXPECT_EQ(problem("text.png", "hello\n"), "cannot read image '" + path("text.png") + "' (not an image OpenCV can decode)");
+  std::vector<uchar> jpg;
+  cv::imencode(".jpg", cv::Mat(50, 60, CV_8UC1, cv::Scalar(9)), jpg);
+  EXPECT_EQ(problem("cut.jpg", std::string(jpg.begin(), jpg.begin() + static_cast<long>(jpg.size() / 2))),
+            "cannot read image '" + path("cut.jpg") + "' (truncated JPEG (no end-of-image marker))");
+  EXPECT_TRUE(sgd::ImageFileReader::read(path("missing.png"), &why).empty());
+  EXPECT_EQ(why, "cannot read image '" + path("missing.png") + "' (no such file)");
+  fs::create_directories(path("dir.png"));
+  sgd::ImageFileReader::read(path("dir.png"), &why);
+  EXPECT_EQ(why, "cannot read image '" + path("dir.png") + "' (not a regular file)");
+}
+
+// ------------------------------------------------------------------------------- KittiSequence layouts
+
+TEST_F(IoTest, KittiSequenceChoosesTheCameraPair) {
+  // KITTI raw layout: image_00/data .. image_03/data and calib_cam_to_cam.txt with all four cameras
+  const cv::Mat grey(60, 80, CV_8UC1, cv::Scalar(90)), colour(60, 80, CV_8UC3, cv::Scalar(90, 90, 90));
+  for (int cam = 0; cam < 4; ++cam) {
+    const std::string d = path("raw/image_0" + std::to_string(cam) + "/data");
+    fs::create_directories(d);
+    for (int f = 0; f < 2; ++f) cv::imwrite(d + "/000000000" + std::to_string(f) + ".png", cam < 2 ? grey : colour);
+  }
+  spit(path("raw/calib_cam_to_cam.txt"),
+       "S_rect_00: 80 60\nP_rect_00: 50 0 40 0 0 50 30 0 0 0 1 0\nP_rect_01: 50 0 40 -27 0 50 30 0 0 0 1 0\n"
+       "S_rect_02: 80 60\nP_rect_02: 50 0 40 2 0 50 30 0.1 0 0 1 0\nP_rect_03: 50 0 40 -25 0 50 30 0.2 0 0 1 0\n");
+  const sgd::KittiSequence automatic = sgd::KittiSequence::open(path("raw"));
+  EXPECT_EQ(automatic.cameras(), sgd::CalibrationReader::CameraPair::kGray);
+  EXPECT_EQ(automatic.leftFolder(), path("raw/image_00/data"));
+  EXPECT_NEAR(automatic.rig().baseline_m, 0.54, 1e-12);
+  EXPECT_TRUE(automatic.warnings().empty());
+  sgd::KittiSequenceOptions o;
+  o.cameras = sgd::CalibrationReader::CameraPair::kColor;
+  const sgd::KittiSequence colour_pair = sgd::KittiSequence::open(path("raw"), o);
+  EXPECT_EQ(colour_pair.leftFolder(), path("raw/image_02/data"));
+  EXPECT_NEAR(colour_pair.rig().baseline_m, 0.54, 1e-12);
+  EXPECT_NEAR(colour_pair.rig().right_offset_y_m, -0.002, 1e-12);
+  ASSERT_EQ(colour_pair.warnings().size(), 1u);
+  EXPECT_EQ(colour_pair.warnings()[0].rfind("stereo calibration: the right camera is displaced by y -0.002 m", 0), 0u);
+  EXPECT_EQ(colour_pair.size(), 2);
+  cv::Mat l, r;
+  colour_pair.read(1, &l, &r);
+  EXPECT_EQ(l.type(), CV_8UC3);
+  // without the grey folders the colour pair is the automatic choice
+  fs::remove_all(path("raw/image_00"));
+  EXPECT_EQ(sgd::KittiSequence::open(path("raw")).cameras(), sgd::CalibrationReader::CameraPair::kColor);
+}
+
+TEST_F(IoTest, KittiOdometryColourFoldersUseP2P3) {
+  // a KITTI odometry calib.txt with all four cameras and only the colour folders image_2/image_3
+  const cv::Mat colour(60, 80, CV_8UC3, cv::Scalar(90, 90, 90));
+  for (const char* d : {"odo/image_2", "odo/image_3"}) {
+    fs::create_directories(path(d));
+    cv::imwrite(path(d) + "/000000.png", colour);
+  }
+  spit(path("odo/calib.txt"),
+       "P0: 50 0 40 0 0 50 30 0 0 0 1 0\nP1: 50 0 40 -27 0 50 30 0 0 0 1 0\n"
+       "P2: 50 0 40 2 0 50 30 0.1 0 0 1 0\nP3: 50 0 40 -24 0 50 30 0.2 0 0 1 0\nTr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  const sgd::KittiSequence s = sgd::KittiSequence::open(path("odo"));
+  EXPECT_EQ(s.cameras(), sgd::CalibrationReader::CameraPair::kColor);
+  EXPECT_NEAR(s.rig().baseline_m, 0.52, 1e-12);  // P2/P3, not P0/P1 (0.54)
+  EXPECT_EQ(s.rig().width, 80);
+  // a calib.txt with the grey pair only does not serve colour folders: an error, not P0/P1
+  spit(path("odo/calib.txt"), "P0: 50 0 40 0 0 50 30 0 0 0 1 0\nP1: 50 0 40 -27 0 50 30 0 0 0 1 0\n");
+  EXPECT_EQ(thrownMessage([&] { sgd::KittiSequence::open(path("odo")); }),
+            "sequence '" + path("odo") + "': " + path("odo") +
+                "/calib.txt has no calibration for the cameras of the image folders found (image_2/image_3)");
 }

@@ -4,7 +4,6 @@
 
 #include <Eigen/QR>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <functional>
 #include <iostream>
@@ -548,7 +547,9 @@ TEST(TraversabilityFilter, InputFormsAgreeAndBadInputIsRejected) {
   EXPECT_THROW(f.compute(bad, z), std::invalid_argument);
 }
 
-TEST(TraversabilityFilter, Timing400x400) {
+TEST(TraversabilityFilter, LargeGridWithAHole) {
+  // 400 x 400 vertices with an unknown block: the block stays unknown for both presets. (Speed is
+  // measured by the benchmark, sgd_benchmark, not asserted here.)
   const GroundGrid g = makeGrid(400, 400, 0.1);
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.01);
@@ -556,16 +557,7 @@ TEST(TraversabilityFilter, Timing400x400) {
   z(cv::Rect(100, 100, 50, 80)).setTo(kNaN);
   for (const auto& [name, o] : {std::make_pair("car", TraversabilityOptions::forCar()),
                                 std::make_pair("small robot", TraversabilityOptions::forSmallRobot())}) {
-    const TraversabilityFilter f(o);
-    TraversabilityLayers t = f.compute(g, z);  // warm-up
-    const int repeats = 10;
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < repeats; ++i) t = f.compute(g, z);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / repeats;
-    std::cout << "[          ] 400 x 400 " << name << ": " << ms << " ms per grid\n";
-    EXPECT_GE(countNaN(t.traversability), 50 * 80);
-#ifdef NDEBUG
-    EXPECT_LT(ms, 200.0) << "far slower than the few tens of ms expected";
-#endif
+    const TraversabilityLayers t = TraversabilityFilter(o).compute(g, z);
+    EXPECT_GE(countNaN(t.traversability), 50 * 80) << name;
   }
 }

@@ -91,7 +91,10 @@ class ElevationMap {
   };
   using Key = std::int64_t;
   static Key key(int tile_row, int tile_col) {
-    return (static_cast<std::int64_t>(tile_row) << 32) ^ static_cast<std::uint32_t>(tile_col);
+    // shifted as unsigned: a left shift of a negative value is undefined before C++20 (UBSan);
+    // the bits are the same as before (row in the high word, column in the low word)
+    return static_cast<Key>((static_cast<std::uint64_t>(static_cast<std::uint32_t>(tile_row)) << 32) |
+                            static_cast<std::uint32_t>(tile_col));
   }
   Tile* tileFor(int lattice_row, int lattice_col, bool create, int* index);
   const Tile* tileFor(int lattice_row, int lattice_col, int* index) const;

@@ -39,9 +39,14 @@ struct GroundGrid {
   int rows = 0;               ///< vertices along y
   int cols = 0;               ///< vertices along x
 
+  /// Largest |lattice index| and vertex count covering() produces (int-safe with room to spare).
+  static constexpr int kMaxLatticeIndex = 1 << 28;
+  static constexpr int kMaxVertices = 1 << 28;
+
   /// The smallest grid on the lattice of spacing `resolution_m` covering [x_min, x_max] x
   /// [y_min, y_max] whose first index and extent are multiples of `align` (so that it can be
-  /// coarsened by `align`).
+  /// coarsened by `align`). Throws std::invalid_argument for a non-finite or inverted extent, and,
+  /// naming the numbers, for an extent beyond kMaxLatticeIndex or kMaxVertices.
   static GroundGrid covering(double x_min, double x_max, double y_min, double y_max,
                              double resolution_m, int align = 1);
 

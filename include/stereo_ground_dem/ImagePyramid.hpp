@@ -8,11 +8,13 @@
 #include <string>
 #include <vector>
 
+#include "stereo_ground_dem/GreyConverter.hpp"
+
 namespace stereo_ground_dem {
 
 class ImagePyramid {
  public:
-  enum class ColorOrder { kBgr, kRgb };
+  using ColorOrder = GreyConverter::ColorOrder;
 
   struct Level {
     cv::Mat image;  ///< CV_32F, grey levels
@@ -22,8 +24,10 @@ class ImagePyramid {
 
   ImagePyramid() = default;
   /// Builds `levels` levels (level 0 = input resolution) with cv::pyrDown.
-  /// Accepts CV_8U and CV_16U images with 1, 3 (colour order as given) or 4 channels, and CV_32F
-  /// single-channel images already in grey levels. Throws std::invalid_argument otherwise.
+  /// Accepts what GreyConverter accepts (CV_8UC1/3/4, CV_16UC1/3/4 taken as full 16-bit range,
+  /// CV_32FC1 already in grey levels), up to its size limits (no minimum here); throws
+  /// std::invalid_argument otherwise. 12-bit data in 16-bit samples must go through a
+  /// GreyConverter first (its CV_32F output is taken as it is).
   /// `presmooth_sigma_px` > 0 blurs level 0 with a Gaussian first: bilinear sampling of the other
   /// image at sub-pixel positions attenuates fine texture, which biases the gain estimate upward
   /// (measured: +0.75 % unsmoothed, +0.25 % with 0.8 px on rendered pairs); a little smoothing of
@@ -31,7 +35,8 @@ class ImagePyramid {
   ImagePyramid(const cv::Mat& image, int levels, ColorOrder order = ColorOrder::kBgr,
                double presmooth_sigma_px = 0.0);
 
-  /// Converts any accepted input to single-channel CV_32F grey levels (0..255).
+  /// Converts any accepted input to single-channel CV_32F grey levels (0..255):
+  /// GreyConverter::toGrey with 16 significant bits and no minimum size.
   static cv::Mat toGrayFloat(const cv::Mat& image, ColorOrder order = ColorOrder::kBgr);
 
   int levels() const { return static_cast<int>(levels_.size()); }

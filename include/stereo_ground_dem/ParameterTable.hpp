@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "stereo_ground_dem/GreyConverter.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 
@@ -17,6 +18,7 @@ namespace stereo_ground_dem {
 struct PipelineOptions {
   IncrementalEstimatorOptions estimator;
   TraversabilityOptions traversability = TraversabilityOptions::forCar();
+  GreyConverterOptions input;  ///< image input: bit depth of 16-bit images, size limits
 
   bool isValid(std::string* why) const;
 };
@@ -38,14 +40,20 @@ class ParameterTable {
   const std::vector<Entry>& entries() const { return entries_; }
   const Entry* find(const std::string& name) const;
 
-  /// Sets a parameter from a number (ints are rounded, bools are != 0). Returns false for an
-  /// unknown name or a non-integral value for an int.
+  /// Sets a parameter from a number. Returns false for an unknown name, a non-finite value, a
+  /// non-integral or out-of-int-range value for an int, and anything but 0 or 1 for a bool.
   bool set(const std::string& name, double value) const;
+  /// "" when set(name, value) would succeed, else the one-line reason (naming the parameter and
+  /// the value).
+  std::string whyNotSettable(const std::string& name, double value) const;
   double get(const Entry& e) const;
 
-  /// Reads a YAML file of `name: value` pairs (a `stereo_ground_dem:` or `/**: ros__parameters`
-  /// top-level map is looked into as well). Unknown names throw std::runtime_error with the file
-  /// and the name, so typos do not pass silently; so do values that are not numbers or booleans.
+  /// Reads a YAML file of `name: value` pairs (a `stereo_ground_dem:` or `dem_nodelet:`
+  /// top-level map is looked into as well). Throws std::runtime_error, one line with the file and
+  /// the name, for: an unreadable file or malformed YAML, an unknown name (so typos do not pass
+  /// silently), a value that is not a number (maps, lists, text, `true`/`false` for a number),
+  /// NaN or Inf, a non-integral or out-of-range integer, and a boolean that is not true/false/0/1.
+  /// Value ranges are PipelineOptions::isValid()'s job (call it after loading).
   void loadYaml(const std::string& path) const;
 
  private:

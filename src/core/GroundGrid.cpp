@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -18,12 +19,27 @@ GroundGrid GroundGrid::covering(double x_min, double x_max, double y_min, double
   if (!(resolution_m > 0.0) || align < 1 || !(x_max >= x_min) || !(y_max >= y_min)) {
     throw std::invalid_argument("GroundGrid::covering: invalid extent, resolution or alignment");
   }
+  // Lattice indices and extents must stay far inside int (and the vertex count inside
+  // kMaxVertices): check in double before converting.
+  const double c_lo = std::floor(x_min / resolution_m), c_hi = std::ceil(x_max / resolution_m);
+  const double r_lo = std::floor(y_min / resolution_m), r_hi = std::ceil(y_max / resolution_m);
+  const double index_limit = static_cast<double>(kMaxLatticeIndex);
+  const double count = (c_hi - c_lo + align + 1.0) * (r_hi - r_lo + align + 1.0);
+  if (!(std::abs(c_lo) <= index_limit && std::abs(c_hi) <= index_limit && std::abs(r_lo) <= index_limit &&
+        std::abs(r_hi) <= index_limit) ||
+      align > kMaxLatticeIndex || !(count <= static_cast<double>(kMaxVertices))) {
+    std::ostringstream os;
+    os << "GroundGrid::covering: extent x [" << x_min << ", " << x_max << "] y [" << y_min << ", " << y_max
+       << "] m at " << resolution_m << " m (align " << align << ") is out of range: lattice indices must be within +-"
+       << kMaxLatticeIndex << " and the grid at most " << kMaxVertices << " vertices";
+    throw std::invalid_argument(os.str());
+  }
   GroundGrid g;
   g.resolution_m = resolution_m;
-  const int c0 = floorTo(static_cast<int>(std::floor(x_min / resolution_m)), align);
-  const int c1 = ceilTo(static_cast<int>(std::ceil(x_max / resolution_m)), align);
-  const int r0 = floorTo(static_cast<int>(std::floor(y_min / resolution_m)), align);
-  const int r1 = ceilTo(static_cast<int>(std::ceil(y_max / resolution_m)), align);
+  const int c0 = floorTo(static_cast<int>(c_lo), align);
+  const int c1 = ceilTo(static_cast<int>(c_hi), align);
+  const int r0 = floorTo(static_cast<int>(r_lo), align);
+  const int r1 = ceilTo(static_cast<int>(r_hi), align);
   g.col0 = c0;
   g.row0 = r0;
   g.cols = std::max(c1 - c0, align) + 1;

@@ -6,28 +6,9 @@
 namespace stereo_ground_dem {
 
 cv::Mat ImagePyramid::toGrayFloat(const cv::Mat& image, ColorOrder order) {
-  if (image.empty()) throw std::invalid_argument("image is empty");
-  const int depth = image.depth();
-  const int ch = image.channels();
-  if (depth != CV_8U && depth != CV_16U && !(depth == CV_32F && ch == 1)) {
-    throw std::invalid_argument("unsupported image depth (expected 8-bit, 16-bit or float grey)");
-  }
-  if (ch != 1 && ch != 3 && ch != 4) {
-    throw std::invalid_argument("unsupported channel count " + std::to_string(ch));
-  }
-  cv::Mat gray;
-  if (ch == 1) {
-    gray = image;
-  } else {
-    const bool rgb = order == ColorOrder::kRgb;
-    const int code = ch == 3 ? (rgb ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY)
-                             : (rgb ? cv::COLOR_RGBA2GRAY : cv::COLOR_BGRA2GRAY);
-    cv::cvtColor(image, gray, code);
-  }
-  cv::Mat out;
-  const double scale = depth == CV_16U ? 255.0 / 65535.0 : 1.0;
-  gray.convertTo(out, CV_32F, scale);
-  return out;
+  GreyConverterOptions limits;
+  limits.min_side_px = 1;
+  return GreyConverter::toGrey(image, 16, order, GreyConverter::kHostByteOrder, limits);
 }
 
 ImagePyramid::ImagePyramid(const cv::Mat& image, int levels, ColorOrder order,

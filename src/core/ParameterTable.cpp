@@ -1,6 +1,9 @@
 #include "stereo_ground_dem/ParameterTable.hpp"
 
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 #include <fstream>
 #include <sstream>
 #include <opencv2/core/persistence.hpp>
@@ -16,6 +19,10 @@ bool PipelineOptions::isValid(std::string* why) const {
   }
   if (!traversability.isValid(&w)) {
     if (why) *why = "traversability: " + w;
+    return false;
+  }
+  if (!input.isValid(&w)) {
+    if (why) *why = "input: " + w;
     return false;
   }
   return true;
@@ -36,6 +43,9 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   SurfaceAlignerOptions& a = s.aligner;
   ObstacleDetectorOptions& ob = s.obstacles;
   TraversabilityOptions& t = o->traversability;
+  GreyConverterOptions& in = o->input;
+  // image input
+  i("image_bit_depth", &in.image_bit_depth, "significant bits of 16-bit images (12: 0..4095), 0 detect from the first image [bit]");
   // mesh and working range
   d("grid_resolution_m", &s.grid_resolution_m, "finest mesh spacing [m]");
   i("mesh_levels", &s.mesh_levels, "hierarchical meshing levels (spacing 2^(L-1) s ... s), each with one pyramid level");
@@ -121,21 +131,59 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("roughness_window_radius_m", &t.roughness_window_radius_m, "half side of the roughness window [m]", true);
 }
 
+namespace {
+/// `s` cut to `max_chars` with control characters replaced, for one-line messages.
+std::string printable(const std::string& s, size_t max_chars = 40) {
+  std::string out = s.substr(0, max_chars);
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 32 || c == 127) c = '?';
+  return s.size() > max_chars ? out + "..." : out;
+}
+}  // namespace
+
 const ParameterTable::Entry* ParameterTable::find(const std::string& name) const {
   for (const auto& e : entries_)
     if (e.name == name) return &e;
   return nullptr;
 }
 
-bool ParameterTable::set(const std::string& name, double value) const {
+std::string ParameterTable::whyNotSettable(const std::string& name, double value) const {
   const Entry* e = find(name);
-  if (!e || !std::isfinite(value)) return false;
+  if (!e) return "unknown parameter '" + name + "'";
+  std::ostringstream os;
+  os << "'" << name << "' ";
+  if (!std::isfinite(value)) {
+    os << "must be a finite number, got " << (std::isnan(value) ? "nan" : value > 0 ? "inf" : "-inf");
+    return os.str();
+  }
+  switch (e->type) {
+    case Type::kDouble: return {};
+    case Type::kInt:
+      if (value != std::floor(value)) {
+        os << "must be an integer, got " << value;
+        return os.str();
+      }
+      if (value < std::numeric_limits<int>::min() || value > std::numeric_limits<int>::max()) {
+        os << "= " << value << " is outside the integer range";
+        return os.str();
+      }
+      return {};
+    case Type::kBool:
+      if (value != 0.0 && value != 1.0) {
+        os << "must be true or false (or 1 or 0), got " << value;
+        return os.str();
+      }
+      return {};
+  }
+  return "unknown parameter type";
+}
+
+bool ParameterTable::set(const std::string& name, double value) const {
+  if (!whyNotSettable(name, value).empty()) return false;
+  const Entry* e = find(name);
   switch (e->type) {
     case Type::kDouble: *static_cast<double*>(e->field) = value; return true;
-    case Type::kInt:
-      if (std::abs(value - std::round(value)) > 1e-9) return false;
-      *static_cast<int*>(e->field) = static_cast<int>(std::lround(value));
-      return true;
+    case Type::kInt: *static_cast<int*>(e->field) = static_cast<int>(value); return true;
     case Type::kBool: *static_cast<bool*>(e->field) = value != 0.0; return true;
   }
   return false;
@@ -163,16 +211,18 @@ void ParameterTable::loadYaml(const std::string& path) const {
   try {
     fs.open(content, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   } catch (const cv::Exception& ex) {
-    throw std::runtime_error("parameter file '" + path + "': not readable YAML (" + ex.err + ")");
+    throw std::runtime_error("parameter file '" + path + "': not readable YAML (" + printable(ex.err, 200) + ")");
   }
   if (!fs.isOpened()) throw std::runtime_error("parameter file '" + path + "': not readable YAML");
   cv::FileNode root = fs.root();
+  if (root.empty() || root.isNone()) return;  // comments only
+  if (!root.isMap()) throw std::runtime_error("parameter file '" + path + "': the top level is not a map of name: value");
   for (const char* wrapper : {"stereo_ground_dem", "dem_nodelet"}) {
     if (!root[wrapper].empty() && root[wrapper].isMap()) root = root[wrapper];
   }
   for (cv::FileNodeIterator it = root.begin(); it != root.end(); ++it) {
     const cv::FileNode node = *it;
-    const std::string name = node.name();
+    const std::string name = printable(node.name());
     const Entry* e = find(name);
     if (!e) {
       // topic and frame names belong to the ROS layer; they may live in the same file
@@ -184,20 +234,38 @@ void ParameterTable::loadYaml(const std::string& path) const {
       if (ros_only) continue;
       throw std::runtime_error("parameter file '" + path + "': unknown parameter '" + name + "'");
     }
+    const std::string where = "parameter file '" + path + "': ";
     double value = 0.0;
     if (node.isInt() || node.isReal()) {
       value = static_cast<double>(node);
     } else if (node.isString()) {
       const std::string v = static_cast<std::string>(node);
-      if (v == "true" || v == "True") value = 1.0;
-      else if (v == "false" || v == "False") value = 0.0;
-      else throw std::runtime_error("parameter file '" + path + "': '" + name + "' is not a number: " + v);
+      std::string lower = v;
+      for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      const bool is_true = v == "true" || v == "True" || v == "TRUE";
+      const bool is_false = v == "false" || v == "False" || v == "FALSE";
+      char* end = nullptr;
+      const double number = std::strtod(v.c_str(), &end);
+      const bool numeric = !v.empty() && end != v.c_str() && *end == '\0';
+      if (lower == ".nan") {  // YAML's spellings of the non-finite floats
+        value = std::numeric_limits<double>::quiet_NaN();
+      } else if (lower == ".inf" || lower == "+.inf" || lower == "-.inf") {
+        value = lower[0] == '-' ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+      } else if (is_true || is_false) {
+        if (e->type != Type::kBool) throw std::runtime_error(where + "'" + name + "' must be a number, got '" + v + "'");
+        value = is_true ? 1.0 : 0.0;
+      } else if (numeric) {
+        value = number;  // e.g. "nan", "inf": refused below with the number
+      } else {
+        throw std::runtime_error(where + "'" + name + "' is not a number: '" + printable(v) + "'");
+      }
     } else {
-      throw std::runtime_error("parameter file '" + path + "': '" + name + "' is not a number");
+      throw std::runtime_error(where + "'" + name + "' must be a single number, not " +
+                               (node.isMap() ? "a map" : node.isSeq() ? "a list" : "empty"));
     }
-    if (!set(name, value)) {
-      throw std::runtime_error("parameter file '" + path + "': '" + name + "' must be an integer");
-    }
+    const std::string why = whyNotSettable(name, value);
+    if (!why.empty()) throw std::runtime_error(where + why);
+    set(name, value);
   }
 }
 

@@ -1,5 +1,7 @@
 #include "stereo_ground_dem/io/DemPicture.hpp"
 
+#include "stereo_ground_dem/GreyConverter.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -259,6 +261,9 @@ bool DemPictureOptions::isValid(std::string* why) const {
     return bad("light_elevation_deg must be in (0, 90]");
   if (!std::isfinite(light_azimuth_deg)) return bad("light_azimuth_deg must be finite");
   if (!(overlay_alpha >= 0.0 && overlay_alpha <= 1.0)) return bad("overlay_alpha must be in [0, 1]");
+  if (image_bit_depth != 0 && (image_bit_depth < 8 || image_bit_depth > 16)) {
+    return bad("image_bit_depth must be 0 (detect) or 8..16");
+  }
   return true;
 }
 
@@ -395,9 +400,12 @@ cv::Mat DemPicture::overlayOnImage(const cv::Mat& image, const cv::Mat& values, 
   std::string why;
   if (!options.isValid(&why))
     throw std::invalid_argument("DemPicture::overlayOnImage: invalid options: " + why);
-  if (image.empty() || (image.type() != CV_8UC1 && image.type() != CV_8UC3)) {
-    throw std::invalid_argument("DemPicture::overlayOnImage: image is not CV_8UC1 or CV_8UC3");
-  }
+  GreyConverterOptions any_size;  // a picture of any image size
+  any_size.min_side_px = 1;
+  any_size.max_side_px = std::numeric_limits<int>::max();
+  any_size.max_megapixels = std::numeric_limits<double>::max();
+  const std::string bad_image = GreyConverter::check(image, any_size);
+  if (!bad_image.empty()) throw std::invalid_argument("DemPicture::overlayOnImage: " + bad_image);
   if (values.type() != CV_32FC1 || values.size() != image.size()) {
     throw std::invalid_argument("DemPicture::overlayOnImage: values are not CV_32F of the image size");
   }
@@ -412,12 +420,7 @@ cv::Mat DemPicture::overlayOnImage(const cv::Mat& image, const cv::Mat& values, 
     if (std::isnan(hi)) hi = std::max(phi, lo + 1e-3);
   }
   if (!(hi > lo)) throw std::invalid_argument("DemPicture::overlayOnImage: empty value range");
-  cv::Mat base;
-  if (image.type() == CV_8UC1) {
-    cv::cvtColor(image, base, cv::COLOR_GRAY2BGR);
-  } else {
-    base = image.clone();
-  }
+  cv::Mat base = GreyConverter::toBgr8(image, options.image_bit_depth);
   const cv::Mat lut = colourLut(options.overlay_colormap);
   const double a = options.overlay_alpha;
   for (int r = 0; r < base.rows; ++r) {

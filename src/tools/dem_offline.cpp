@@ -1,14 +1,22 @@
 // dem_offline: the estimator without a ROS master.
 //
-//   dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE]
-//   dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--quiet]
+//   dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE] [--cameras 0,1|2,3]
+//   dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--cameras 0,1|2,3] [--quiet]
 //
 // One-pair mode runs the stereo mode; sequence mode runs the incremental estimator over a
-// KITTI-odometry-style folder. Both write dem.tif / dem.yaml / dem_disparity_000000.png and
-// pictures into OUT; errors are one line on stderr and a non-zero exit status.
+// KITTI-style folder (KittiSequence). Both write dem.tif / dem.yaml / dem_disparity_NNNNNN.png and
+// pictures into OUT; errors are one line on stderr and a non-zero exit status. In sequence mode a
+// frame that cannot be read or is refused is skipped with a one-line warning and counted
+// (frames.csv status, summary.txt); the run succeeds when at least one frame was mapped.
+//
+// Images of any type GreyConverter accepts (8/16-bit grey, BGR, BGRA; 16-bit scaled by its bit
+// depth, `image_bit_depth` or detected from the first image) go through one GreyConverter.
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -21,6 +29,7 @@
 #include <string>
 
 #include "stereo_ground_dem/CalibrationReader.hpp"
+#include "stereo_ground_dem/GreyConverter.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
@@ -28,6 +37,7 @@
 #include "stereo_ground_dem/io/DemExporter.hpp"
 #include "stereo_ground_dem/io/DemPicture.hpp"
 #include "stereo_ground_dem/io/DisparityPng.hpp"
+#include "stereo_ground_dem/io/ImageFileReader.hpp"
 #include "stereo_ground_dem/io/KittiSequence.hpp"
 #include "stereo_ground_dem/io/TrajectoryWriter.hpp"
 
@@ -36,9 +46,11 @@ using namespace stereo_ground_dem;
 namespace {
 
 const char* kUsage =
-    "usage: dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE]\n"
-    "       dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--quiet]\n"
+    "usage: dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE] [--cameras P]\n"
+    "       dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--cameras P] [--quiet]\n"
     "  --config FILE  YAML file of parameters (see config/kitti.yaml)\n"
+    "  --cameras P    camera pair of a KITTI calibration: 0,1 (grey) or 2,3 (colour); default: grey\n"
+    "                 when present, else colour\n"
     "  --frames N     process the first N frames only\n"
     "  --quiet        no per-frame progress lines\n"
     "       dem_offline --list-parameters [--config FILE]   every parameter (markdown table)\n";
@@ -61,6 +73,7 @@ void listParameters(const std::string& config) {
 
 struct Args {
   std::string left, right, calib, sequence, out, config;
+  CalibrationReader::CameraPair cameras = CalibrationReader::CameraPair::kAuto;
   int frames = -1;
   bool quiet = false;
   bool list_parameters = false;
@@ -80,6 +93,12 @@ Args parse(int argc, char** argv) {
     else if (k == "--sequence") a.sequence = value();
     else if (k == "--out") a.out = value();
     else if (k == "--config") a.config = value();
+    else if (k == "--cameras") {
+      const std::string v = value();
+      if (v == "0,1") a.cameras = CalibrationReader::CameraPair::kGray;
+      else if (v == "2,3") a.cameras = CalibrationReader::CameraPair::kColor;
+      else throw std::invalid_argument("--cameras takes 0,1 or 2,3, got '" + v + "'");
+    }
     else if (k == "--frames") {
       const std::string v = value();
       char* end = nullptr;
@@ -127,8 +146,11 @@ double peakMemoryMb() {
   return u.ru_maxrss / 1024.0;
 }
 
-void writeOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& disparity) {
+void warn(const std::string& what) { std::fprintf(stderr, "dem_offline: warning: %s\n", what.c_str()); }
+
+void writeOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& disparity, int bit_depth) {
   DemPictureOptions po;
+  po.image_bit_depth = bit_depth;
   cv::Mat d = disparity.clone();
   d.setTo(std::numeric_limits<float>::quiet_NaN(), disparity <= 0.0f);
   DemPicture::save(path, DemPicture::overlayOnImage(image, d, std::numeric_limits<double>::quiet_NaN(),
@@ -143,13 +165,9 @@ void markObstacles(DemExport* dem) {
 }
 
 /// The left image with the obstacle pixels (red) and the obstacle layer's vertices (yellow dots).
-void writeObstacleOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& excluded,
+void writeObstacleOverlay(const std::string& path, const cv::Mat& image, int bit_depth, const cv::Mat& excluded,
                           const StereoResult& r, const StereoRig& rig) {
-  cv::Mat vis;
-  cv::Mat gray = image;
-  if (image.depth() == CV_16U) image.convertTo(gray, CV_8U, 1.0 / 256.0);
-  if (gray.channels() == 1) cv::cvtColor(gray, vis, cv::COLOR_GRAY2BGR);
-  else vis = gray.clone();
+  cv::Mat vis = GreyConverter::toBgr8(image, bit_depth);
   cv::Mat red(vis.size(), vis.type(), cv::Scalar(0, 0, 255));
   cv::Mat blended;
   cv::addWeighted(vis, 0.5, red, 0.5, 0.0, blended);
@@ -165,29 +183,67 @@ void writeObstacleOverlay(const std::string& path, const cv::Mat& image, const c
   }
   cv::putText(vis, "obstacle pixels (red), obstacle-layer vertices (yellow)", cv::Point(10, 22),
               cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 2);
-  if (!cv::imwrite(path, vis)) throw std::runtime_error("cannot write '" + path + "'");
+  DemPicture::save(path, vis);
+}
+
+cv::Mat readImage(const std::string& path) {
+  std::string why;
+  const cv::Mat m = ImageFileReader::read(path, &why);
+  if (m.empty()) throw std::runtime_error(why);
+  return m;
+}
+
+/// The grey float image the estimators take; a refused image throws naming its path.
+cv::Mat toGrey(GreyConverter* conv, const cv::Mat& image, const std::string& path) {
+  try {
+    return conv->convert(image);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error("image '" + path + "': " + e.what());
+  }
+}
+
+/// Creates `dir` and checks that a file can be written in it (before any work is done).
+void checkOutputDirectory(const std::string& dir) {
+  DemExporter::makeDirectories(dir);
+  const std::string probe = dir + "/.dem_offline_probe";
+  std::ofstream f(probe);
+  f << "x";
+  f.close();
+  if (!f) {
+    throw std::runtime_error("cannot write into output directory '" + dir + "': " + std::strerror(errno));
+  }
+  std::remove(probe.c_str());
+}
+
+std::string frameFileName(const char* stem, int frame, const char* ext) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%s_%06d.%s", stem, frame, ext);
+  return buf;
 }
 
 int runPair(const Args& a) {
   PipelineOptions o = loadOptions(a.config);
-  StereoRig rig = CalibrationReader::read(a.calib);
-  const cv::Mat left = cv::imread(a.left, cv::IMREAD_UNCHANGED);
-  if (left.empty()) throw std::runtime_error("cannot read image '" + a.left + "'");
-  const cv::Mat right = cv::imread(a.right, cv::IMREAD_UNCHANGED);
-  if (right.empty()) throw std::runtime_error("cannot read image '" + a.right + "'");
+  StereoRig rig = CalibrationReader::read(a.calib, a.cameras);
+  if (!rig.rectificationWarning().empty()) warn(rig.rectificationWarning());
+  const cv::Mat left = readImage(a.left);
+  const cv::Mat right = readImage(a.right);
   if (left.size() != right.size()) {
     std::ostringstream os;
     os << "left image " << left.cols << "x" << left.rows << " and right image " << right.cols << "x" << right.rows
        << " differ in size";
     throw std::runtime_error(os.str());
   }
-  if (rig.width == 0) {
-    rig.width = left.cols;
-    rig.height = left.rows;
+  try {
+    rig = rig.withImageSize(left.cols, left.rows);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error("calibration '" + a.calib + "' does not fit image '" + a.left + "': " + e.what());
   }
+  GreyConverter conv(o.input);
+  const cv::Mat grey_left = toGrey(&conv, left, a.left), grey_right = toGrey(&conv, right, a.right);
+  checkOutputDirectory(a.out);
   const StereoEstimator est(rig, o.estimator.stereo);
   const auto t0 = std::chrono::steady_clock::now();
-  const ImagePyramid pl = est.makePyramid(left), pr = est.makePyramid(right);
+  const ImagePyramid pl = est.makePyramid(grey_left), pr = est.makePyramid(grey_right);
   const StereoResult r = est.estimate(pl, pr);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (!r.ok) throw std::runtime_error("estimation failed: " + r.message);
@@ -208,8 +264,8 @@ int runPair(const Args& a) {
   DemExporter::write(a.out, dem);
   const cv::Mat disp = est.impliedDisparity(r, pl);
   DisparityPng::write(a.out + "/dem_disparity_000000.png", disp);
-  writeOverlay(a.out + "/dem_disparity_overlay.png", left, disp);
-  writeObstacleOverlay(a.out + "/obstacles_overlay.png", left, r.obstacles.excluded[0], r, rig);
+  writeOverlay(a.out + "/dem_disparity_overlay.png", left, disp, conv.bitDepth());
+  writeObstacleOverlay(a.out + "/obstacles_overlay.png", left, conv.bitDepth(), r.obstacles.excluded[0], r, rig);
   int known = 0;
   for (int v = 0; v < r.heights.size(); ++v) known += std::isfinite(r.heights[v]);
   std::printf("stereo mode: %.1f ms, %d of %d vertices observed, gain %.4f, bias %.2f grey, camera %.3f m above the ground\n",
@@ -224,52 +280,102 @@ int runPair(const Args& a) {
 
 int runSequence(const Args& a) {
   PipelineOptions o = loadOptions(a.config);
-  const KittiSequence seq = KittiSequence::open(a.sequence);
+  KittiSequenceOptions so;
+  so.cameras = a.cameras;
+  so.read_ground_truth = false;  // not needed for mapping; sgd_evaluate reads it
+  const KittiSequence seq = KittiSequence::open(a.sequence, so);
+  for (const std::string& w : seq.warnings()) warn(w);
   const int n = a.frames > 0 ? std::min(a.frames, seq.size()) : seq.size();
+  checkOutputDirectory(a.out);
   IncrementalEstimator est(seq.rig(), o.estimator);
-  DemExporter::makeDirectories(a.out);
+  GreyConverter conv(o.input);
   std::ofstream timing(a.out + "/timing.csv");
   timing << "frame,ms\n";
   std::ofstream frames(a.out + "/frames.csv");
   frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,message\n";
-  std::vector<Eigen::Isometry3d> poses;
-  std::vector<double> stamps, ms_all;
+  std::vector<Eigen::Isometry3d> poses, tum_poses;
+  std::vector<double> tum_stamps, ms_all;
   std::vector<Eigen::Vector2d> xy;
-  int failures = 0, rejected = 0;
-  cv::Mat disparity0, left0;
+  int failures = 0, rejected = 0, unreadable = 0, mapped = 0, first_mapped = -1;
+  cv::Mat disparity0, image0;
   for (int i = 0; i < n; ++i) {
-    cv::Mat left, right;
-    seq.read(i, &left, &right);
-    const FrameResult fr = est.processFrame(left, right, seq.stamp(i));
-    if (i == 0 && est.initialized()) {
-      disparity0 = est.surfaceDisparity(fr.ground_T_camera);
-      left0 = left;
+    const double stamp = seq.stamp(i);
+    cv::Mat left, right, grey_left, grey_right;
+    std::string problem;
+    bool readable = seq.tryRead(i, &left, &right, &problem);
+    if (readable) {
+      try {
+        grey_left = conv.convert(left);
+        grey_right = conv.convert(right);
+      } catch (const std::invalid_argument& e) {
+        problem = std::string(grey_left.empty() ? "left" : "right") + " image: " + e.what();
+      }
     }
+    // A frame that is unreadable or refused by the converter goes to the estimator as an empty
+    // pair: nothing is estimated, the map is untouched, the pose is the prediction.
+    FrameResult fr = problem.empty() ? est.processFrame(grey_left, grey_right, stamp)
+                                     : est.processFrame(cv::Mat(), cv::Mat(), stamp);
+    if (!problem.empty()) fr.message = problem;
+    const std::string status = readable ? toString(fr.status) : "unreadable";
+    unreadable += !readable;
+    rejected += readable && fr.status == FrameStatus::kRejectedInput;
     failures += fr.status == FrameStatus::kFailed;
-    rejected += fr.status == FrameStatus::kRejectedInput;
+    const bool good = fr.status == FrameStatus::kInitialized || fr.status == FrameStatus::kTracked ||
+                      fr.status == FrameStatus::kRecovered;
+    mapped += good;
+    if (!good && fr.status != FrameStatus::kFailed) warn("frame " + std::to_string(i) + " skipped: " + fr.message);
+    if (fr.status == FrameStatus::kInitialized && first_mapped < 0) {
+      first_mapped = i;
+      disparity0 = est.surfaceDisparity(fr.ground_T_camera);
+      image0 = left;
+    }
     poses.push_back(fr.camera0_T_camera);
-    stamps.push_back(seq.stamp(i));
+    if (std::isfinite(stamp)) {
+      tum_stamps.push_back(stamp);
+      tum_poses.push_back(fr.camera0_T_camera);
+    }
     ms_all.push_back(fr.time_ms);
     if (est.initialized()) xy.push_back(fr.ground_T_camera.translation().head<2>());
     timing << i << "," << fr.time_ms << "\n";
     std::string msg = fr.message;
     std::replace(msg.begin(), msg.end(), ',', ';');
-    frames << i << "," << seq.stamp(i) << "," << toString(fr.status) << "," << fr.time_ms << ","
-           << fr.median_abs_residual_grey << "," << fr.fused_vertices << "," << fr.obstacle_pixels << ","
-           << fr.photometric[0].gain << "," << fr.photometric[0].bias_grey << ","
-           << fr.rectification.maxAbsPx(seq.rig(), 0.0) << "," << fr.stereo_residual_grey << ","
-           << fr.temporal_residual_grey << "," << fr.moving_pixels << "," << msg << "\n";
+    std::replace(msg.begin(), msg.end(), '\n', ' ');
+    frames << i << "," << stamp << "," << status << "," << fr.time_ms << "," << fr.median_abs_residual_grey << ","
+           << fr.fused_vertices << "," << fr.obstacle_pixels << "," << fr.photometric[0].gain << ","
+           << fr.photometric[0].bias_grey << "," << fr.rectification.maxAbsPx(seq.rig(), 0.0) << ","
+           << fr.stereo_residual_grey << "," << fr.temporal_residual_grey << "," << fr.moving_pixels << "," << msg
+           << "\n";
     if (!a.quiet) {
       const Eigen::Vector3d t = fr.camera0_T_camera.translation();
-      std::printf("frame %4d/%d %7.1f ms  %-14s  x %7.2f y %7.2f z %7.2f m%s%s\n", i + 1, n, fr.time_ms,
-                  toString(fr.status), t.x(), t.y(), t.z(), fr.message.empty() ? "" : "  ", fr.message.c_str());
+      std::printf("frame %4d/%d %7.1f ms  %-14s  x %7.2f y %7.2f z %7.2f m%s%s\n", i + 1, n, fr.time_ms, status.c_str(),
+                  t.x(), t.y(), t.z(), fr.message.empty() ? "" : "  ", fr.message.c_str());
       std::fflush(stdout);
     }
   }
-  if (!est.initialized()) throw std::runtime_error("no frame could initialize the map (see frames.csv)");
-  TrajectoryWriter::writeKitti(a.out + "/trajectory_kitti.txt", poses);
-  TrajectoryWriter::writeTum(a.out + "/trajectory_tum.txt", stamps, poses);
+  timing.close();
+  frames.close();
+  if (!timing || !frames) throw std::runtime_error("cannot write timing.csv or frames.csv in '" + a.out + "'");
+  std::vector<double> sorted = ms_all;
+  std::sort(sorted.begin(), sorted.end());
+  const double mean = std::accumulate(ms_all.begin(), ms_all.end(), 0.0) / ms_all.size();
+  const double median = sorted[sorted.size() / 2];
   const ElevationMap& map = est.map();
+  std::ostringstream summary;
+  summary << "frames: " << n << "\nmapped: " << mapped << "\nfirst_mapped_frame: " << first_mapped
+          << "\nfailed: " << failures << "\nrejected_input: " << rejected << "\nunreadable: " << unreadable
+          << "\nskipped: " << rejected + unreadable << "\nrecovered: " << est.recoveries()
+          << "\ncameras: " << (seq.cameras() == CalibrationReader::CameraPair::kAuto ? "l,r" : CalibrationReader::name(seq.cameras())) << "\nimage_bit_depth: " << conv.bitDepth()
+          << "\nmean_ms: " << mean << "\nmedian_ms: " << median << "\npeak_memory_mb: " << peakMemoryMb()
+          << "\nmap_tiles: " << map.tileCount() << "\nmap_memory_mb: " << map.memoryBytes() / 1048576.0 << "\n";
+  std::ofstream(a.out + "/summary.txt") << summary.str();
+  if (mapped == 0) {
+    std::ostringstream os;
+    os << "no frame could be mapped (" << n << " frames: " << unreadable << " unreadable, " << rejected
+       << " rejected, " << failures << " failed; see " << a.out << "/frames.csv)";
+    throw std::runtime_error(os.str());
+  }
+  TrajectoryWriter::writeKitti(a.out + "/trajectory_kitti.txt", poses);
+  TrajectoryWriter::writeTum(a.out + "/trajectory_tum.txt", tum_stamps, tum_poses);
   DemExport dem;
   dem.grid = map.knownBounds();
   dem.elevation = map.layer(ElevationMap::Layer::kElevation, dem.grid);
@@ -280,26 +386,19 @@ int runSequence(const Args& a) {
   markObstacles(&dem);
   dem.ground_T_camera0 = est.groundTCamera0();
   dem.trajectory_xy = xy;
-  dem.extra = {{"mode", "incremental (sequence)"}, {"sequence", a.sequence}};
+  dem.extra = {{"mode", "incremental (sequence)"}, {"sequence", a.sequence},
+               {"first_mapped_frame", std::to_string(first_mapped)}};
   DemExporter::write(a.out, dem);
-  DisparityPng::write(a.out + "/dem_disparity_000000.png", disparity0);
-  writeOverlay(a.out + "/dem_disparity_overlay.png", left0, disparity0);
-  std::vector<double> sorted = ms_all;
-  std::sort(sorted.begin(), sorted.end());
-  const double mean = std::accumulate(ms_all.begin(), ms_all.end(), 0.0) / ms_all.size();
-  const double median = sorted[sorted.size() / 2];
-  std::ostringstream summary;
-  summary << "frames: " << n << "\nfailed: " << failures << "\nrejected_input: " << rejected
-          << "\nrecovered: " << est.recoveries() << "\nmean_ms: " << mean << "\nmedian_ms: " << median
-          << "\npeak_memory_mb: " << peakMemoryMb() << "\nmap_tiles: " << map.tileCount()
-          << "\nmap_memory_mb: " << map.memoryBytes() / 1048576.0 << "\n";
-  std::ofstream(a.out + "/summary.txt") << summary.str();
-  std::printf("%d frames (%d failed, %d rejected), %.1f ms mean, %.1f ms median per frame, peak memory %.0f MB\n", n,
-              failures, rejected, mean, median, peakMemoryMb());
+  const std::string disparity_name = frameFileName("dem_disparity", first_mapped, "png");
+  DisparityPng::write(a.out + "/" + disparity_name, disparity0);
+  writeOverlay(a.out + "/dem_disparity_overlay.png", image0, disparity0, conv.bitDepth());
+  std::printf("%d frames (%d mapped, %d failed, %d rejected, %d unreadable), %.1f ms mean, %.1f ms median per frame, "
+              "peak memory %.0f MB\n",
+              n, mapped, failures, rejected, unreadable, mean, median, peakMemoryMb());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
-              "mesh.ply, obstacles.tif, obstacle_height.tif, dem_disparity_000000.png, trajectory_kitti.txt, trajectory_tum.txt, timing.csv, "
-              "frames.csv, summary.txt}\n",
-              a.out.c_str());
+              "mesh.ply, obstacles.tif, obstacle_height.tif, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
+              "trajectory_tum.txt, timing.csv, frames.csv, summary.txt}\n",
+              a.out.c_str(), disparity_name.c_str());
   return 0;
 }
 

@@ -48,6 +48,9 @@ struct DemPictureOptions {
   std::string title;            ///< empty: a default title naming the picture and the resolution
   double overlay_alpha = 0.55;  ///< opacity of overlayOnImage()'s colours, 0..1
   int overlay_colormap = cv::COLORMAP_TURBO;  ///< colour map of overlayOnImage()
+  /// Significant bits of 16-bit camera images given to overlayOnImage() [bit]: 0 detect from the
+  /// image (GreyConverter::detectBitDepth), else 8..16.
+  int image_bit_depth = 0;
 
   bool isValid(std::string* why = nullptr) const;
 };
@@ -77,7 +80,8 @@ class DemPicture {
                                        const std::vector<Eigen::Vector2d>& trajectory_xy_m = {},
                                        DemPictureLayout* layout = nullptr);
 
-  /// The camera image (CV_8UC1 or CV_8UC3) with `values` (CV_32F, same size; NaN or 0 = none)
+  /// The camera image (any type GreyConverter accepts: 8/16-bit grey, BGR or BGRA, float grey;
+  /// 16-bit scaled by options.image_bit_depth) with `values` (CV_32F, same size; NaN or 0 = none)
   /// blended over it in options.overlay_colormap over [min_value, max_value] (NaN: robust range
   /// of the shown values), and a legend strip below titled `legend_title`.
   static cv::Mat overlayOnImage(const cv::Mat& image, const cv::Mat& values, double min_value,

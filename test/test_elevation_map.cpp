@@ -1,0 +1,172 @@
+// ElevationMap's archive: evicted tiles written to disk and loaded back unchanged, and every way
+// an archive can be broken refused with the file's name.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "stereo_ground_dem/ElevationMap.hpp"
+
+using namespace stereo_ground_dem;
+namespace fs = std::filesystem;
+
+namespace {
+
+class Archive : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("sgd_test_archive_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  ElevationMapOptions options() const {
+    ElevationMapOptions o;
+    o.tile_size = 16;
+    o.keep_radius_m = 30.0;
+    o.archive_directory = dir_.string();
+    return o;
+  }
+
+  /// A map with heights, information, observations and obstacles over 40 m x 20 m.
+  ElevationMap filledMap() const {
+    ElevationMap map(options());
+    const GroundGrid w = GroundGrid::covering(-3.0, 37.0, -10.0, 10.0, 0.5);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> h(-0.3, 0.3), info(10.0, 1000.0);
+    Eigen::VectorXd z(w.vertexCount()), inf(w.vertexCount()), obstacle_height(w.vertexCount());
+    std::vector<uint8_t> update(static_cast<size_t>(w.vertexCount())), hit(update.size()), ground(update.size());
+    for (int v = 0; v < w.vertexCount(); ++v) {
+      z[v] = h(rng);
+      inf[v] = info(rng);
+      obstacle_height[v] = v % 7 == 0 ? 1.25 : NAN;
+      update[static_cast<size_t>(v)] = v % 5 != 0;  // some vertices stay unknown
+      hit[static_cast<size_t>(v)] = v % 7 == 0;
+      ground[static_cast<size_t>(v)] = v % 11 == 0;
+    }
+    map.fuse(w, z, Eigen::VectorXd::Zero(w.vertexCount()), inf, update, 3);
+    map.fuse(w, z, inf, inf, update, 4);
+    map.updateObstacles(w, hit, ground, obstacle_height, 4);
+    return map;
+  }
+
+  fs::path dir_;
+};
+
+bool sameLayer(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size()) return false;
+  for (int r = 0; r < a.rows; ++r)
+    for (int c = 0; c < a.cols; ++c) {
+      const float x = a.at<float>(r, c), y = b.at<float>(r, c);
+      if (std::isnan(x) != std::isnan(y) || (!std::isnan(x) && x != y)) return false;
+    }
+  return true;
+}
+
+const ElevationMap::Layer kLayers[] = {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance,
+                                       ElevationMap::Layer::kObservations, ElevationMap::Layer::kLastUpdate,
+                                       ElevationMap::Layer::kObstacle, ElevationMap::Layer::kObstacleHeight};
+
+}  // namespace
+
+TEST_F(Archive, EvictedTilesRoundTripExactly) {
+  ElevationMap map = filledMap();
+  const GroundGrid bounds = map.bounds();
+  const size_t tiles = map.tileCount();
+  ASSERT_GT(tiles, 8u);
+  std::vector<cv::Mat> before;
+  for (auto l : kLayers) before.push_back(map.layer(l, bounds));
+  // drive 1 km away: every tile is evicted to the archive
+  EXPECT_EQ(map.evictFarFrom(1000.0, 0.0), static_cast<int>(tiles));
+  EXPECT_EQ(map.tileCount(), 0u);
+  size_t files = 0;
+  for (const auto& f : fs::directory_iterator(dir_)) files += f.path().extension() == ".bin";
+  EXPECT_EQ(files, tiles);
+  // a foreign file in the archive folder is ignored
+  std::ofstream(dir_ / "notes.txt") << "not a tile";
+  ElevationMap back(options());
+  EXPECT_EQ(back.loadArchive(dir_.string()), static_cast<int>(tiles));
+  EXPECT_EQ(back.tileCount(), tiles);
+  EXPECT_TRUE(back.bounds().sameLayout(bounds));
+  for (size_t i = 0; i < before.size(); ++i) EXPECT_TRUE(sameLayer(back.layer(kLayers[i], bounds), before[i])) << i;
+  // the known part is the same too
+  EXPECT_TRUE(back.knownBounds().sameLayout(filledMap().knownBounds()));
+  // loading into the map that evicted them restores it as well
+  EXPECT_EQ(map.loadArchive(dir_.string()), static_cast<int>(tiles));
+  for (size_t i = 0; i < before.size(); ++i) EXPECT_TRUE(sameLayer(map.layer(kLayers[i], bounds), before[i])) << i;
+}
+
+TEST_F(Archive, NegativeTileIndicesKeepTheirPlace) {
+  ElevationMap map(options());
+  const GroundGrid w = GroundGrid::covering(-50.0, -40.0, -30.0, -20.0, 0.5);
+  map.fuse(w, Eigen::VectorXd::Constant(w.vertexCount(), 0.7), Eigen::VectorXd::Zero(w.vertexCount()),
+           Eigen::VectorXd::Constant(w.vertexCount(), 50.0), std::vector<uint8_t>(static_cast<size_t>(w.vertexCount()), 1), 0);
+  const cv::Mat before = map.layer(ElevationMap::Layer::kElevation, w);
+  map.evictFarFrom(500.0, 500.0);
+  ElevationMap back(options());
+  back.loadArchive(dir_.string());
+  EXPECT_TRUE(sameLayer(back.layer(ElevationMap::Layer::kElevation, w), before));
+  EXPECT_FLOAT_EQ(back.layer(ElevationMap::Layer::kElevation, w).at<float>(3, 4), 0.7f);
+}
+
+TEST_F(Archive, BrokenArchivesAreRefusedNamingTheFile) {
+  ElevationMap map = filledMap();
+  map.evictFarFrom(1000.0, 0.0);
+  const auto error = [&](const ElevationMapOptions& o) -> std::string {
+    ElevationMap m(o);
+    try {
+      m.loadArchive(dir_.string());
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "<loaded>";
+  };
+  // another layout: tile size or resolution
+  ElevationMapOptions other = options();
+  other.tile_size = 32;
+  EXPECT_NE(error(other).find("is not a tile of this map's layout"), std::string::npos);
+  other = options();
+  other.resolution_m = 0.25;
+  EXPECT_NE(error(other).find("is not a tile of this map's layout"), std::string::npos);
+  // a missing directory
+  ElevationMap m(options());
+  try {
+    m.loadArchive((dir_ / "nowhere").string());
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), "ElevationMap: cannot open archive directory '" + (dir_ / "nowhere").string() + "'");
+  }
+  // a truncated tile
+  fs::path one;
+  for (const auto& f : fs::directory_iterator(dir_))
+    if (f.path().extension() == ".bin") one = f.path();
+  fs::resize_file(one, fs::file_size(one) - 100);
+  EXPECT_EQ(error(options()), "ElevationMap: archive tile '" + one.filename().string() + "' is truncated");
+  // a header cut short and a wrong magic
+  fs::resize_file(one, 10);
+  EXPECT_EQ(error(options()), "ElevationMap: '" + one.filename().string() + "' is not a tile of this map's layout");
+  std::ofstream(one, std::ios::binary) << std::string(64, 'x');
+  EXPECT_EQ(error(options()), "ElevationMap: '" + one.filename().string() + "' is not a tile of this map's layout");
+}
+
+TEST_F(Archive, UnwritableArchiveDirectoryIsAnError) {
+  ElevationMapOptions o = options();
+  std::ofstream(dir_ / "file") << "x";
+  o.archive_directory = (dir_ / "file" / "sub").string();  // below a regular file: cannot be created, even by root
+  ElevationMap map(o);
+  const GroundGrid w = GroundGrid::covering(0.0, 5.0, 0.0, 5.0, 0.5);
+  map.fuse(w, Eigen::VectorXd::Zero(w.vertexCount()), Eigen::VectorXd::Zero(w.vertexCount()),
+           Eigen::VectorXd::Ones(w.vertexCount()), std::vector<uint8_t>(static_cast<size_t>(w.vertexCount()), 1), 0);
+  try {
+    map.evictFarFrom(1000.0, 0.0);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("ElevationMap: cannot write archive tile '" + o.archive_directory + "/tile_", 0), 0u)
+        << e.what();
+  }
+}
