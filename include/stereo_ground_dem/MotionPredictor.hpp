@@ -7,8 +7,10 @@
 /// frames are bridged), then hypotheses for what a constant velocity does not predict: the same
 /// translation without the rotation rate (a bump's pitch rate ends), attitude steps of
 /// `rotation_step_rad` and twice that about each camera axis (bouncing over rough ground: 2-3
-/// degrees between frames), and half / double the translation (braking, accelerating). The
-/// tracker tries them in order until one aligns about as well as the usual frame.
+/// degrees between frames), half / double the translation (braking, accelerating) and, when the
+/// stamp gap differs from the last one by more than 1.5x, the last step unscaled (a wrong stamp,
+/// not dropped frames). The tracker tries them in order until one aligns about as well as the
+/// usual frame.
 ///
 /// Without one (the first tracked frame, after a failure): a grid of forward translations along
 /// the optical axis combined with yaw rates (a vehicle already turning on its first frame); the
@@ -76,6 +78,7 @@ class MotionPredictor {
   Eigen::Isometry3d last_camera_T_ground_ = Eigen::Isometry3d::Identity();
   double last_stamp_s_ = 0.0;
   Vector6d velocity_ = Vector6d::Zero();
+  double last_gap_s_ = 0.0;  ///< the stamp gap the velocity was measured over [s]
   bool velocity_known_ = false;
 };
 

@@ -507,6 +507,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
           starts.insert(starts.begin() + 2, anchored);
         }
       }
+      // A start far from the first (a wrong stamp's unscaled step) sees another part of the map.
+      const GroundGrid start_window = viewWindow(starts[k]);
+      if (!start_window.sameLayout(window)) {
+        window = start_window;
+        initialHeights(window, starts[k], &heights, &info);
+      }
       SurfaceState s;
       s.camera_T_ground = starts[k];
       s.heights = heights;
@@ -540,8 +546,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   if (!aligned_window.sameLayout(window)) {
     window = aligned_window;
     initialHeights(window, state.camera_T_ground, &heights, &info);
-    state.heights = heights;
   }
+  state.heights = heights;  // (the starts may have moved the window: these match it)
   res.window = window;
   HeightPrior prior;
   prior.mean = heights;
@@ -674,7 +680,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const ObstacleEvidence oe = ObstacleDetector::evidence(
       window, state.heights, last.vertex_pixels, last.vertex_excluded_pixels,
       obstacles.groundPoints(rig_, state.camera_T_ground.inverse()), so.hidden_pixel_ratio, so.min_ground_pixels,
-      so.obstacles.min_obstacle_height_m);
+      so.obstacles.min_obstacle_height_m, so.obstacles.hidden_body_depth_m);
   map_.updateObstacles(window, oe.hit, oe.ground, oe.height, res.frame_index);
 
   res.obstacle_vertices = static_cast<int>(std::count(oe.hit.begin(), oe.hit.end(), 1));

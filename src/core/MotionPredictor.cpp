@@ -31,6 +31,7 @@ void MotionPredictor::reset() {
   last_camera_T_ground_.setIdentity();
   last_stamp_s_ = 0.0;
   velocity_.setZero();
+  last_gap_s_ = 0.0;
   velocity_known_ = false;
 }
 
@@ -38,6 +39,7 @@ void MotionPredictor::setPose(const Eigen::Isometry3d& camera_T_ground, double s
   last_camera_T_ground_ = camera_T_ground;
   last_stamp_s_ = stamp_s;
   velocity_.setZero();
+  last_gap_s_ = 0.0;
   velocity_known_ = false;
 }
 
@@ -45,6 +47,7 @@ void MotionPredictor::update(const Eigen::Isometry3d& camera_T_ground, double st
   const double dt = gap(stamp_s);
   velocity_ = Se3::log(camera_T_ground * last_camera_T_ground_.inverse()) / dt;
   velocity_known_ = true;
+  last_gap_s_ = dt;
   last_camera_T_ground_ = camera_T_ground;
   last_stamp_s_ = stamp_s;
 }
@@ -70,6 +73,11 @@ std::vector<Eigen::Isometry3d> MotionPredictor::hypotheses(double stamp_s) const
   // attitude steps around the translation alone: a bump ends a pitch rate as often as it starts one
   for (const Eigen::Isometry3d& p : attitudeSteps(Se3::exp(no_turn) * last_camera_T_ground_)) out.push_back(p);
   for (double f : {0.5, 1.5}) out.push_back(Se3::exp(step * f) * last_camera_T_ground_);
+  // A stamp gap unlike the last one may be a wrong stamp rather than dropped frames: the last
+  // step as it was, whatever the stamps say.
+  if (last_gap_s_ > 0.0 && (dt > 1.5 * last_gap_s_ || dt < last_gap_s_ / 1.5)) {
+    out.push_back(Se3::exp(velocity_ * last_gap_s_) * last_camera_T_ground_);
+  }
   return out;
 }
 
