@@ -65,6 +65,8 @@ struct StereoOutcome {
   int footprint_vertices = 0;    ///< footprint vertices in view (5-40 m)
   int flagged = 0;               ///< ... of them flagged in the obstacle layer
   int raised = 0;                ///< vertices outside footprints with a height > 10 cm above the truth
+  int free_vertices = 0;         ///< vertices >= 1 m from any footprint in view (5-40 m) ...
+  int free_flagged = 0;          ///< ... flagged in the obstacle layer (occlusion shadows would be)
 };
 
 StereoOutcome evaluateStereo(const Pair& c, const StereoResult& r) {
@@ -84,6 +86,10 @@ StereoOutcome evaluateStereo(const Pair& c, const StereoResult& r) {
         }
         continue;
       }
+      if (dist >= 1.0 && inView(c.rig, c.ground_T_left, Eigen::Vector3d(t.p.x(), t.p.y(), t.terrain), 5.0, 40.0)) {
+        ++o.free_vertices;
+        if (r.obstacle[v] == 1.0) ++o.free_flagged;
+      }
       if (!std::isfinite(r.heights[v])) continue;
       if (t.p.z() - t.terrain > 0.10) ++o.raised;
       if (dist < 1.0 || !inView(c.rig, c.ground_T_left, t.p, 5.0, 30.0)) continue;
@@ -97,7 +103,10 @@ StereoOutcome evaluateStereo(const Pair& c, const StereoResult& r) {
 }  // namespace
 
 // Measured (this code): ground >= 1 m from footprints, 5-30 m, median 0.33 cm, p95 1.23 cm (the
-// same scene without obstacles: 0.35 / 1.52 cm); footprints flagged 76 of 76; no raised vertex.
+// same scene without obstacles: 0.35 / 1.52 cm); footprints flagged 60 of 76 (the faces seen and
+// 1.5 m of hidden ground behind them: hidden_body_depth_m); free ground >= 1 m from footprints
+// flagged 185 of 4525 (4.1 %; 711 = 15.7 % when every hidden vertex was an obstacle, the
+// occlusion shadows); no raised vertex.
 TEST(Obstacles, StereoModeGroundBesideParkedCarWallAndPoles) {
   const Pair with = renderPair(sim::SceneKind::kFlatRoad, true);
   const Pair without = renderPair(sim::SceneKind::kFlatRoad, false);
@@ -106,16 +115,18 @@ TEST(Obstacles, StereoModeGroundBesideParkedCarWallAndPoles) {
   const StereoResult ro = est.estimate(without.pair.left.image, without.pair.right.image);
   ASSERT_TRUE(rw.ok && ro.ok) << rw.message << ro.message;
   const StereoOutcome w = evaluateStereo(with, rw), o = evaluateStereo(without, ro);
-  std::printf("with obstacles: n=%zu median %.2f cm p95 %.2f cm; footprint %d/%d flagged; raised %d\n",
+  std::printf("with obstacles: n=%zu median %.2f cm p95 %.2f cm; footprint %d/%d flagged; free %d/%d flagged; raised %d\n",
               w.far_from_obstacles.count, 100 * w.far_from_obstacles.median, 100 * w.far_from_obstacles.p95,
-              w.flagged, w.footprint_vertices, w.raised);
+              w.flagged, w.footprint_vertices, w.free_flagged, w.free_vertices, w.raised);
   std::printf("without:        n=%zu median %.2f cm p95 %.2f cm; raised %d\n", o.far_from_obstacles.count,
               100 * o.far_from_obstacles.median, 100 * o.far_from_obstacles.p95, o.raised);
   EXPECT_GT(w.far_from_obstacles.count, 1000u);
   EXPECT_LT(w.far_from_obstacles.median, 0.01);
   EXPECT_LT(w.far_from_obstacles.p95, 0.03);
   EXPECT_GT(w.footprint_vertices, 20);
-  EXPECT_GE(w.flagged, 0.95 * w.footprint_vertices);
+  EXPECT_GE(w.flagged, 0.7 * w.footprint_vertices);
+  EXPECT_GT(w.free_vertices, 4000);
+  EXPECT_LE(w.free_flagged, 0.06 * w.free_vertices) << "occlusion shadows flagged as obstacles";
   EXPECT_EQ(w.raised, 0) << "vertices outside the footprints more than 10 cm above the ground (a hill or halo)";
 }
 

@@ -44,6 +44,9 @@ struct ObstacleDetectorOptions {
   double min_range_m = 2.0;            ///< nearest obstacle searched [m]
   double ground_band_m = 0.4;          ///< ground raised/lowered by up to this is still ground [m]
   int dilation_px = 1;                 ///< grow the mask at the test level [px]
+  /// Hidden ground this close to a cell where the thing stands is its body (a car's footprint
+  /// seen from behind); farther hidden ground is its occlusion shadow and stays unknown [m].
+  double hidden_body_depth_m = 1.5;
 
   bool isValid(std::string* why) const;
 };
@@ -60,23 +63,27 @@ struct ObstacleMask {
 
 /// Per-vertex obstacle evidence of one frame on a grid.
 struct ObstacleEvidence {
-  std::vector<uint8_t> hit;     ///< vertex hidden by, or under, an obstacle
+  std::vector<uint8_t> hit;     ///< vertex under an obstacle (its points fall into the cell)
+  std::vector<uint8_t> hidden;  ///< vertex seen mostly through obstacle pixels: its ground is not seen
   std::vector<uint8_t> ground;  ///< vertex seen as ground (its pixels fit the surface)
   Eigen::VectorXd height;       ///< obstacle height above the surface [m], NaN where no 3-D point
 };
 
 class ObstacleDetector {
  public:
-  /// Evidence on `grid` (surface `heights`): a vertex is hit when its triangles' pixels were mostly
-  /// excluded as obstacle pixels (more than `hidden_ratio` times its ground pixels; the ground
-  /// there is hidden) or when at least `min_points` obstacle points at least
-  /// `min_obstacle_height_m` above the surface fall into its cell and some of its triangles'
-  /// pixels are obstacle pixels (a thin pole); it is ground when it had
-  /// `min_ground_pixels` ground pixels and no hit.
+  /// Evidence on `grid` (surface `heights`): a vertex is hit when at least `min_points` obstacle
+  /// points at least `min_obstacle_height_m` above the surface fall into its cell and some of its
+  /// triangles' pixels are obstacle pixels (the thing stands there). It is hidden when its
+  /// triangles' pixels were mostly excluded as obstacle pixels (more than `hidden_ratio` times its
+  /// ground pixels: the ground behind the thing is not seen); a hidden vertex within
+  /// `body_depth_m` of a hit vertex is hit too (the thing's body), the others are neither hit nor
+  /// ground (its occlusion shadow: unknown). It is ground when it had `min_ground_pixels` ground
+  /// pixels and is neither hit nor hidden.
   static ObstacleEvidence evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
                                    const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
                                    const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
-                                   int min_ground_pixels, double min_obstacle_height_m, int min_points = 2);
+                                   int min_ground_pixels, double min_obstacle_height_m, double body_depth_m,
+                                   int min_points = 2);
 
   explicit ObstacleDetector(const ObstacleDetectorOptions& options);
 

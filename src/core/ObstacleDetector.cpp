@@ -21,6 +21,7 @@ bool ObstacleDetectorOptions::isValid(std::string* why) const {
   if (!(min_ground_cost_grey >= 0.0)) return bad("min_ground_cost_grey must be >= 0");
   if (!(min_range_m > 0.0)) return bad("min_range_m must be > 0");
   if (!(ground_band_m >= 0.0) || !(ground_band_m < camera_height_m)) return bad("ground_band_m must be in [0, camera_height_m)");
+  if (!(hidden_body_depth_m >= 0.0) || !(hidden_body_depth_m <= 10.0)) return bad("hidden_body_depth_m must be in [0, 10]");
   if (dilation_px < 0) return bad("dilation_px must be >= 0");
   return true;
 }
@@ -45,11 +46,13 @@ std::vector<Eigen::Vector3d> ObstacleMask::groundPoints(const StereoRig& rig,
 ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
                                             const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
                                             const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
-                                            int min_ground_pixels, double min_height, int min_points) {
+                                            int min_ground_pixels, double min_height, double body_depth_m,
+                                            int min_points) {
   const int n = grid.vertexCount();
   ObstacleEvidence ev;
   ev.hit.assign(static_cast<size_t>(n), 0);
   ev.ground.assign(static_cast<size_t>(n), 0);
+  ev.hidden.assign(static_cast<size_t>(n), 0);
   ev.height = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
   std::vector<int> count(static_cast<size_t>(n), 0);
   for (const auto& p : points) {
@@ -72,9 +75,29 @@ ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen:
     const bool covered = excluded_pixels.size() == n && excluded_pixels[v] > 0;
     const bool points_here = covered && count[static_cast<size_t>(v)] >= min_points;
     if (!points_here) ev.height[v] = std::numeric_limits<double>::quiet_NaN();
-    ev.hit[static_cast<size_t>(v)] = hidden || points_here;
+    // Ground hidden behind something is not seen: neither obstacle nor ground (the occlusion shadow
+    // of a car stays unknown instead of becoming a long lethal streak behind it).
+    ev.hit[static_cast<size_t>(v)] = points_here;
+    ev.hidden[static_cast<size_t>(v)] = hidden;
     ev.ground[static_cast<size_t>(v)] =
-        !ev.hit[static_cast<size_t>(v)] && ground_pixels.size() == n && ground_pixels[v] >= min_ground_pixels;
+        !points_here && !hidden && ground_pixels.size() == n && ground_pixels[v] >= min_ground_pixels;
+  }
+  // The body: hidden vertices near a hit one.
+  const int reach = static_cast<int>(std::floor(body_depth_m / grid.resolution_m + 1e-9));
+  if (reach > 0) {
+    const std::vector<uint8_t> standing = ev.hit;
+    for (int r = 0; r < grid.rows; ++r) {
+      for (int c = 0; c < grid.cols; ++c) {
+        if (!standing[static_cast<size_t>(grid.index(r, c))]) continue;
+        for (int dr = -reach; dr <= reach; ++dr) {
+          for (int dc = -reach; dc <= reach; ++dc) {
+            if (dr * dr + dc * dc > reach * reach || !grid.contains(r + dr, c + dc)) continue;
+            const size_t u = static_cast<size_t>(grid.index(r + dr, c + dc));
+            if (ev.hidden[u]) ev.hit[u] = 1;
+          }
+        }
+      }
+    }
   }
   return ev;
 }

@@ -87,6 +87,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("hidden_pixel_ratio", &s.hidden_pixel_ratio, "vertex hidden by an obstacle when obstacle pixels > ratio * ground pixels", true);
   i("min_ground_pixels", &s.min_ground_pixels, "vertices with fewer ground pixels are not observed", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
+  d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
   // failure handling and input checks
   d("max_speed_m_per_s", &e.check.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
   d("max_turn_rate_rad_per_s", &e.check.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);

@@ -331,7 +331,7 @@ StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const Image
   res.excluded_pixels = last.vertex_excluded_pixels;
   res.obstacle_evidence = ObstacleDetector::evidence(
       res.grid, state.heights, res.pixels, res.excluded_pixels, res.obstacles.groundPoints(rig_, res.ground_T_camera),
-      o.hidden_pixel_ratio, o.min_ground_pixels, o.obstacles.min_obstacle_height_m);
+      o.hidden_pixel_ratio, o.min_ground_pixels, o.obstacles.min_obstacle_height_m, o.obstacles.hidden_body_depth_m);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   res.obstacle = Eigen::VectorXd::Constant(res.grid.vertexCount(), nan);
   res.obstacle_height = res.obstacle_evidence.height;
@@ -340,7 +340,9 @@ StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const Image
     if (hit) res.obstacle[v] = 1.0;
     else if (res.obstacle_evidence.ground[static_cast<size_t>(v)]) res.obstacle[v] = 0.0;
     // unseen, weakly seen or hidden ground stays unknown rather than invented
-    if (hit || res.pixels[v] < o.min_ground_pixels) res.heights[v] = nan;
+    if (hit || res.obstacle_evidence.hidden[static_cast<size_t>(v)] || res.pixels[v] < o.min_ground_pixels) {
+      res.heights[v] = nan;
+    }
   }
   res.photometric = state.photometric[0];
   res.median_abs_residual_grey = last.median_abs_residual_grey;
