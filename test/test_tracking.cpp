@@ -1,0 +1,259 @@
+// The incremental mode's tracking parts on their own: MotionPredictor (prediction scaled by the
+// stamp gap, rotation and speed hypotheses, the wrong-stamp hypothesis, the search grid),
+// TrackingCheck (every failure reason and its threshold) and DisparityPlaneFit (the dominant
+// plane of sparse matches, with outliers, at any attitude; refusals).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "stereo_ground_dem/DisparityPlaneFit.hpp"
+#include "stereo_ground_dem/MotionPredictor.hpp"
+#include "stereo_ground_dem/Se3.hpp"
+#include "stereo_ground_dem/TrackingCheck.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+/// The twist taking `a` to `b` (b = exp(xi) a).
+Vector6d between(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) { return Se3::log(b * a.inverse()); }
+
+/// Camera 1.65 m above level ground looking along +x, moving 1.2 m forward and yawing 0.02 rad per 0.1 s.
+struct Drive {
+  MotionPredictor p;
+  Vector6d step_per_frame;
+  Eigen::Isometry3d pose1;
+  Drive() {
+    Eigen::Isometry3d camera_T_ground = Eigen::Isometry3d::Identity();
+    camera_T_ground.translation() = Eigen::Vector3d(0.0, 1.65, 0.0);
+    step_per_frame << 0.0, 0.0, -1.2, 0.0, 0.02, 0.0;
+    p.setPose(camera_T_ground, 10.0);
+    pose1 = Se3::exp(step_per_frame) * camera_T_ground;
+    p.update(pose1, 10.1);
+  }
+};
+
+}  // namespace
+
+TEST(MotionPredictor, ConstantVelocityScalesWithTheStampGap) {
+  Drive d;
+  ASSERT_TRUE(d.p.velocityKnown());
+  EXPECT_NEAR((d.p.velocity() - d.step_per_frame / 0.1).norm(), 0.0, 1e-9);
+  EXPECT_NEAR((between(d.pose1, d.p.predict(10.2)) - d.step_per_frame).norm(), 0.0, 1e-9);
+  // two frames dropped: three steps
+  EXPECT_NEAR((between(d.pose1, d.p.predict(10.4)) - 3.0 * d.step_per_frame).norm(), 0.0, 1e-9);
+  // a stamp that does not increase: the nominal period
+  EXPECT_DOUBLE_EQ(d.p.gap(10.1), 0.1);
+  EXPECT_DOUBLE_EQ(d.p.gap(10.05), 0.1);
+  d.p.forgetVelocity();
+  EXPECT_FALSE(d.p.velocityKnown());
+  EXPECT_TRUE(d.p.predict(10.2).isApprox(d.pose1, 1e-12));
+}
+
+TEST(MotionPredictor, HypothesesCoverTurnsAttitudeStepsAndSpeedChanges) {
+  Drive d;
+  const std::vector<Eigen::Isometry3d> h = d.p.hypotheses(10.2);
+  ASSERT_EQ(h.size(), 16u);  // cv, no turn, 12 attitude steps, half, double
+  EXPECT_NEAR((between(d.pose1, h[0]) - d.step_per_frame).norm(), 0.0, 1e-9);
+  Vector6d no_turn = d.step_per_frame;
+  no_turn.tail<3>().setZero();
+  EXPECT_NEAR((between(d.pose1, h[1]) - no_turn).norm(), 0.0, 1e-9);
+  // attitude steps: 1.5 and 3 degrees about x, z, y of the camera, both signs, around h[1]
+  const double step = d.p.options().rotation_step_rad;
+  EXPECT_NEAR(step, 1.5 * kDeg, 0.02 * kDeg);
+  const int axes[3] = {0, 2, 1};
+  for (int k = 0; k < 12; ++k) {
+    const Vector6d xi = between(h[1], h[2 + k]);
+    const double expected = (k < 6 ? 1.0 : 2.0) * step * ((k % 2) ? -1.0 : 1.0);
+    EXPECT_NEAR(xi[3 + axes[(k / 2) % 3]], expected, 1e-12) << k;
+    EXPECT_NEAR(xi.head<3>().norm(), 0.0, 1e-12) << k;
+    EXPECT_NEAR(xi.tail<3>().norm(), std::abs(expected), 1e-12) << k;
+  }
+  EXPECT_NEAR((between(d.pose1, h[14]) - 0.5 * d.step_per_frame).norm(), 0.0, 1e-9);
+  EXPECT_NEAR((between(d.pose1, h[15]) - 1.5 * d.step_per_frame).norm(), 0.0, 1e-9);
+}
+
+TEST(MotionPredictor, AStampGapUnlikeTheLastOneAddsTheUnscaledStep) {
+  Drive d;
+  // 5 s instead of 0.1 s: a wrong stamp or 49 dropped frames; both are tried
+  const std::vector<Eigen::Isometry3d> h = d.p.hypotheses(15.1);
+  ASSERT_EQ(h.size(), 17u);
+  EXPECT_NEAR((between(d.pose1, h[0]) - 50.0 * d.step_per_frame).norm(), 0.0, 1e-7);
+  EXPECT_NEAR((between(d.pose1, h.back()) - d.step_per_frame).norm(), 0.0, 1e-9);
+  // a gap within 1.5x of the last: no extra hypothesis
+  EXPECT_EQ(d.p.hypotheses(10.24).size(), 16u);
+  EXPECT_EQ(d.p.hypotheses(10.26).size(), 17u);
+}
+
+TEST(MotionPredictor, SearchGridSpansForwardMotionAndYawWithACappedReverse) {
+  MotionPredictor p;
+  p.setPose(Eigen::Isometry3d::Identity(), 0.0);
+  const MotionPredictorOptions& o = p.options();
+  std::vector<Eigen::Isometry3d> g = p.searchGrid(0.1);
+  // -1 .. 3 m in 0.2 m steps (21) for each of 5 yaw rates
+  ASSERT_EQ(g.size(), 21u * o.search_yaw_rad.size());
+  double min_t = 1e9, max_t = -1e9;
+  for (const auto& x : g) {
+    const double forward = -x.translation().z();
+    min_t = std::min(min_t, forward);
+    max_t = std::max(max_t, forward);
+  }
+  EXPECT_NEAR(min_t, -1.0, 1e-9);
+  EXPECT_NEAR(max_t, 3.0, 1e-9);
+  // three periods: up to 9 m forward in steps of at most 0.6 m, still at most 1 m backwards
+  g = p.searchGrid(0.3);
+  min_t = 1e9, max_t = -1e9;
+  for (const auto& x : g) {
+    min_t = std::min(min_t, -x.translation().z());
+    max_t = std::max(max_t, -x.translation().z());
+  }
+  EXPECT_NEAR(min_t, -1.0, 1e-9);
+  EXPECT_GT(max_t, 8.9 - 0.6);
+  EXPECT_LE(max_t, 9.0 + 1e-9);
+  EXPECT_EQ(g.size(), 17u * o.search_yaw_rad.size());  // -1 .. 8.6 in 0.6 m
+}
+
+TEST(TrackingCheck, EachReasonAtItsThreshold) {
+  const TrackingCheck check{TrackingCheckOptions()};
+  TrackingEvidence ok;
+  ok.step << 0.0, 0.0, -1.2, 0.0, 0.02, 0.0;
+  ok.samples = 20000;
+  ok.outside = 1000;
+  ok.well_known = 1000;
+  ok.jumps = 10;
+  ok.median_residual_grey = 4.0;
+  ok.usual_residual_grey = 3.0;
+  EXPECT_EQ(check.failure(ok), "");
+
+  TrackingEvidence e = ok;
+  e.degenerate = true;
+  EXPECT_EQ(check.failure(e), "normal equations degenerate");
+  e = ok;
+  e.finite = false;
+  EXPECT_EQ(check.failure(e), "estimate is not finite");
+  e = ok;
+  e.step[2] = -4.9;  // 49 m/s passes, 51 m/s does not
+  EXPECT_EQ(check.failure(e), "");
+  e.step[2] = -5.1;
+  EXPECT_EQ(check.failure(e), "implausible motion: 51 m/s");
+  e = ok;
+  e.step[3] = 0.29;  // 2.9 rad/s passes, 3.1 does not
+  EXPECT_EQ(check.failure(e), "");
+  e.step[3] = 0.31;
+  EXPECT_EQ(check.failure(e).rfind("implausible rotation: 3.1", 0), 0u) << check.failure(e);
+  e = ok;
+  e.outside = 12001;  // more than 60 % of the samples
+  EXPECT_EQ(check.failure(e), "too few pixels overlap between the images (12001 of 20000 samples outside)");
+  e = ok;
+  e.samples = 499;
+  e.outside = 0;
+  EXPECT_NE(check.failure(e), "");
+  e = ok;
+  e.jumps = 151;  // more than 15 % of 1000
+  EXPECT_EQ(check.failure(e), "151 of 1000 well-known vertices moved more than 0.4 m");
+  e.well_known = 20;  // too few well-known vertices to judge
+  e.jumps = 20;
+  EXPECT_EQ(check.failure(e), "");
+  e = ok;
+  // limit max(3 x usual, usual + 3 grey): 9 grey for a usual 3 grey, 4 grey for a usual 1 grey
+  e.median_residual_grey = 8.9;
+  EXPECT_EQ(check.failure(e), "");
+  e.median_residual_grey = 9.1;
+  EXPECT_EQ(check.failure(e), "alignment did not converge: median residual 9.1 grey (usual 3)");
+  e.usual_residual_grey = 1.0;
+  e.median_residual_grey = 3.9;
+  EXPECT_EQ(check.failure(e), "");
+  e.median_residual_grey = 4.1;
+  EXPECT_NE(check.failure(e), "");
+  e.usual_residual_grey = 0.0;  // no level yet: not judged
+  EXPECT_EQ(check.failure(e), "");
+  TrackingCheckOptions bad;
+  bad.max_residual_ratio = 1.0;
+  EXPECT_THROW(TrackingCheck{bad}, std::invalid_argument);
+}
+
+namespace {
+
+StereoRig kittiRig() {
+  StereoRig r;
+  r.fx = r.fy = 718.856;
+  r.cx = 607.19;
+  r.cy = 185.22;
+  r.baseline_m = 0.537;
+  r.width = 1226;
+  r.height = 370;
+  return r;
+}
+
+/// Matches (u, v, d) of the plane {X : down . X = height} seen by `rig` below the horizon, plus
+/// `outliers` random matches, with `noise_px` of disparity noise.
+std::vector<Eigen::Vector3f> planeMatches(const StereoRig& rig, const Eigen::Vector3d& down, double height, int n,
+                                          int outliers, double noise_px, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, noise_px);
+  std::vector<Eigen::Vector3f> pts;
+  while (static_cast<int>(pts.size()) < n) {
+    const double u = u01(rng) * (rig.width - 1), v = u01(rng) * (rig.height - 1);
+    const double inv_z = (down.x() * (u - rig.cx) / rig.fx + down.y() * (v - rig.cy) / rig.fy + down.z()) / height;
+    const double d = rig.fx * rig.baseline_m * inv_z;
+    if (d < 3.0 || d > 150.0) continue;
+    pts.emplace_back(static_cast<float>(u), static_cast<float>(v), static_cast<float>(d + noise(rng)));
+  }
+  for (int k = 0; k < outliers; ++k) {
+    pts.emplace_back(static_cast<float>(u01(rng) * (rig.width - 1)), static_cast<float>(u01(rng) * (rig.height - 1)),
+                     static_cast<float>(3.0 + 60.0 * u01(rng)));
+  }
+  return pts;
+}
+
+}  // namespace
+
+TEST(DisparityPlaneFit, RecoversThePlaneAtAnyAttitudeThroughOutliers) {
+  const StereoRig rig = kittiRig();
+  const DisparityPlaneFit fit;
+  // level; pitched down 8 deg and rolled 5 deg; camera 1.2 m high and pitched up 6 deg
+  const Eigen::Vector3d downs[] = {
+      Eigen::Vector3d::UnitY(),
+      (Eigen::AngleAxisd(5 * kDeg, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(-8 * kDeg, Eigen::Vector3d::UnitX()) *
+       Eigen::Vector3d::UnitY()),
+      Eigen::AngleAxisd(6 * kDeg, Eigen::Vector3d::UnitX()) * Eigen::Vector3d::UnitY()};
+  const double heights[] = {1.65, 1.65, 1.2};
+  for (int k = 0; k < 3; ++k) {
+    const auto pts = planeMatches(rig, downs[k], heights[k], 400, 150, 0.2, 7 + k);
+    // only matches below the principal point's row are used
+    int below = 0;
+    for (int i = 0; i < 400; ++i) below += pts[static_cast<size_t>(i)].y() > rig.cy;
+    const DisparityPlane p = fit.fit(pts, rig);
+    ASSERT_TRUE(p.ok) << k << ": " << p.message;
+    EXPECT_LT(std::acos(std::min(1.0, p.down.dot(downs[k]))), 0.15 * kDeg) << k;
+    EXPECT_NEAR(p.height_m, heights[k], 0.01) << k;
+    EXPECT_GE(p.inliers, 0.97 * below) << k;
+    EXPECT_LE(p.inliers, below + 30) << k;  // a few outliers fall on the plane by chance
+    EXPECT_LT(p.rms_px, 0.3) << k;
+  }
+}
+
+TEST(DisparityPlaneFit, RefusesTooFewMatchesAndPlanesThatAreNoGround) {
+  const StereoRig rig = kittiRig();
+  const DisparityPlaneFit fit;
+  // 20 matches: fewer than min_inliers
+  DisparityPlane p = fit.fit(planeMatches(rig, Eigen::Vector3d::UnitY(), 1.65, 20, 0, 0.1, 3), rig);
+  EXPECT_FALSE(p.ok);
+  EXPECT_FALSE(p.message.empty());
+  // a wall facing the camera 8 m ahead: constant disparity, normal along the optical axis
+  std::vector<Eigen::Vector3f> wall;
+  for (int k = 0; k < 400; ++k) {
+    wall.emplace_back(static_cast<float>(100 + (k * 37) % 1000), static_cast<float>(20 + (k * 53) % 330),
+                      static_cast<float>(rig.fx * rig.baseline_m / 8.0));
+  }
+  p = fit.fit(wall, rig);
+  EXPECT_FALSE(p.ok);
+  EXPECT_FALSE(p.message.empty());
+  // the ceiling of a tunnel 3 m above: the plane is above the camera
+  p = fit.fit(planeMatches(rig, -Eigen::Vector3d::UnitY(), 3.0, 400, 0, 0.1, 5), rig);
+  EXPECT_FALSE(p.ok);
+}

@@ -1,0 +1,187 @@
+// The development zoo end to end, as a user runs it: every scene rendered by sgd_render, mapped by
+// dem_offline with the shipped defaults (config/kitti.yaml), scored by sgd_evaluate; the real KITTI
+// clips of ../shared mapped and scored against their GPS/IMU poses and (raw drive 0013) the LiDAR
+// ground reference. The same chain as scripts/evaluate_zoo.py; docs/results.md has the table.
+//
+// Each limit sits between the measured figure (the comment after it) and twice it, so a 2x
+// regression of any figure fails. Where the measured figure misses the target of issue 10
+// (rotation <= 0.5 deg, drift <= 1 %, heights within 20 m median <= 2 cm, 95th <= 6 cm) the
+// limit guards what we have and the case is named in docs/results.md.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kBin = SGD_BIN_DIR;
+const std::string kSource = SGD_SOURCE_DIR;
+// ../shared beside the repository (the source dir may be a symlink in the catkin workspace)
+const std::string kShared = (fs::weakly_canonical(fs::path(kSource)).parent_path() / "shared").string();
+
+struct Limits {
+  const char* name;
+  int frames;
+  double drift_pct;      ///< end drift / path length
+  double rotation_deg;   ///< end rotation error
+  double median_cm;      ///< |height error| within 20 m, median
+  double p95_cm;         ///< and 95th percentile
+  double min_coverage;   ///< known / seen vertices within 20 m
+};
+
+std::ostream& operator<<(std::ostream& os, const Limits& l) { return os << l.name; }
+
+struct Figures {
+  int failed = -1;
+  double drift_pct = NAN, rotation_deg = NAN, median_cm = NAN, p95_cm = NAN, coverage = NAN;
+};
+
+int sh(const std::string& cmd) {
+  const int raw = std::system(cmd.c_str());
+  return WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream f(path);
+  std::ostringstream os;
+  os << f.rdbuf();
+  return os.str();
+}
+
+int failedFrames(const std::string& out) {
+  std::istringstream is(slurp(out + "/summary.txt"));
+  std::string line;
+  while (std::getline(is, line))
+    if (line.rfind("failed: ", 0) == 0) return std::stoi(line.substr(8));
+  return -1;
+}
+
+/// The number after "key: " in `text` from `from` on (NaN if absent).
+double numberAfter(const std::string& text, const std::string& key, size_t from = 0) {
+  const size_t at = text.find(key + ": ", from);
+  if (at == std::string::npos) return NAN;
+  return std::strtod(text.c_str() + at + key.size() + 2, nullptr);
+}
+
+/// sgd_evaluate's evaluation.yaml: trajectory and DEM figures (flow-style lines, read by key).
+void readEvaluation(const std::string& out, Figures* f) {
+  const std::string text = slurp(out + "/evaluation.yaml");
+  ASSERT_FALSE(text.empty()) << out;
+  f->drift_pct = numberAfter(text, "end_drift_pct");
+  f->rotation_deg = numberAfter(text, "end_rotation_error_deg");
+  const size_t w = text.find("within_20m:");
+  if (w != std::string::npos) {
+    f->median_cm = 100.0 * numberAfter(text, "median_m", w);
+    f->p95_cm = 100.0 * numberAfter(text, "p95_m", w);
+    f->coverage = numberAfter(text, "coverage", w);
+  }
+}
+
+class Zoo : public ::testing::TestWithParam<Limits> {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("sgd_zoo_" + std::to_string(::getpid()) + "_" + GetParam().name);
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  /// Maps `seq` with the defaults and scores it; the figures are printed for the record.
+  Figures mapAndScore(const std::string& seq) {
+    const std::string out = (dir_ / "out").string();
+    Figures f;
+    EXPECT_EQ(sh(kBin + "/dem_offline --sequence " + seq + " --out " + out + " --config " + kSource +
+                 "/config/kitti.yaml --quiet > " + out + ".log 2>&1"),
+              0)
+        << slurp(out + ".log");
+    f.failed = failedFrames(out);
+    EXPECT_EQ(sh(kBin + "/sgd_evaluate --sequence " + seq + " --result " + out + " > /dev/null"), 0);
+    readEvaluation(out, &f);
+    return f;
+  }
+  void expectWithin(const Limits& l, const Figures& f) {
+    std::printf("[ zoo      ] %-14s failed %d  drift %.3f %%  rotation %.3f deg  height median %.2f cm  p95 %.2f cm  "
+                "coverage %.1f %%\n",
+                l.name, f.failed, f.drift_pct, f.rotation_deg, f.median_cm, f.p95_cm, 100.0 * f.coverage);
+    EXPECT_EQ(f.failed, 0);
+    EXPECT_LT(f.drift_pct, l.drift_pct);
+    EXPECT_LT(f.rotation_deg, l.rotation_deg);
+    EXPECT_LT(f.median_cm, l.median_cm);
+    EXPECT_LT(f.p95_cm, l.p95_cm);
+    EXPECT_GT(f.coverage, l.min_coverage);
+  }
+  fs::path dir_;
+};
+
+class Scene : public Zoo {};
+
+TEST_P(Scene, MappedWithinItsMeasuredFigures) {
+  const Limits& l = GetParam();
+  const std::string seq = (dir_ / "seq").string();
+  ASSERT_EQ(sh(kBin + "/sgd_render --scene " + l.name + " --frames " + std::to_string(l.frames) + " --out " + seq +
+               " --quiet"),
+            0);
+  expectWithin(l, mapAndScore(seq));
+}
+
+// name, frames, drift %, rotation deg, median cm, p95 cm, min coverage   (measured 2026-11-30)
+INSTANTIATE_TEST_SUITE_P(
+    Zoo, Scene,
+    ::testing::Values(Limits{"flat", 40, 0.05, 0.035, 0.18, 0.9, 0.98},            // 0.03 0.021 0.11 0.56 1.00
+                      Limits{"bump", 40, 0.13, 0.09, 1.0, 3.5, 0.97},               // 0.08 0.054 0.65 2.22 0.997
+                      Limits{"offroad", 40, 0.18, 0.10, 0.8, 10.0, 0.80},           // 0.11 0.059 0.48 6.75 0.848
+                      Limits{"crest", 40, 0.16, 0.30, 4.5, 14.0, 0.97},             // 0.10 0.188 2.92 9.27 0.997
+                      Limits{"sag", 40, 0.04, 0.055, 0.65, 2.6, 0.97},              // 0.02 0.033 0.41 1.64 0.997
+                      Limits{"banked_curve", 40, 0.05, 0.09, 0.5, 2.0, 0.98},       // 0.03 0.054 0.30 1.28 1.00
+                      Limits{"bounce", 40, 3.4, 0.70, 4.2, 11.5, 0.97},             // 1.81-2.29 0.26-0.46 2.4-2.7 6.4-7.6 0.998
+                      Limits{"tight_curve", 40, 0.07, 0.16, 1.3, 3.8, 0.96},        // 0.04 0.097 0.86 2.45 0.983
+                      Limits{"ramp", 40, 0.15, 0.30, 0.7, 90.0, 0.90},              // 0.09 0.191 0.42 59.3 0.937
+                      Limits{"rolling", 40, 12.0, 10.0, 5.0, 330.0, 0.90},          // 8.02 6.61 3.33 226 0.952
+                      Limits{"shadows", 40, 2.6, 1.9, 1.2, 19.0, 0.97},             // 1.71 1.27 0.79 12.8 0.995
+                      Limits{"traffic", 40, 0.36, 0.18, 0.36, 2.5, 0.88}),          // 0.23 0.114 0.23 1.62 0.915
+    [](const ::testing::TestParamInfo<Limits>& i) { return std::string(i.param.name); });
+
+class RealClip : public Zoo {};
+
+TEST_P(RealClip, MappedWithinItsMeasuredFigures) {
+  const Limits& l = GetParam();
+  const std::string seq = kShared + "/data/" + l.name;
+  if (!fs::exists(seq + "/times.txt")) GTEST_SKIP() << seq << " is not there (../shared beside the repository)";
+  Figures f = mapAndScore(seq);
+  // Heights of the raw clip: against the LiDAR ground reference (gt/lidar_ground.npz) with the
+  // LiDAR's poses, as ../shared/tools/lidar_dem_eval.py scores them.
+  if (fs::exists(seq + "/gt/lidar_ground.npz")) {
+    const std::string json = (dir_ / "lidar.json").string();
+    ASSERT_EQ(sh("/usr/bin/python3 " + kShared + "/tools/lidar_dem_eval.py --ref " + seq + " --est " +
+                 (dir_ / "out").string() + " --pose lidar --json > " + json),
+              0);
+    const std::string text = slurp(json);  // {"dem": {"all": {..., "median_abs": x, ..., "p95": x}, ..., "coverage_pct": x}}
+    const size_t all = text.find("\"all\": {");
+    ASSERT_NE(all, std::string::npos) << text;
+    f.median_cm = 100.0 * numberAfter(text, "\"median_abs\"", all);
+    f.p95_cm = 100.0 * numberAfter(text, "\"p95\"", all);
+    f.coverage = numberAfter(text, "\"coverage_pct\"", all) / 100.0;
+  } else {
+    f.median_cm = f.p95_cm = 0.0;  // no height reference
+    f.coverage = 1.0;
+  }
+  expectWithin(l, f);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Kitti, RealClip,
+    ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 80, 1.8, 0.75, 30.0, 60.0, 0.85},  // 1.21 0.470 20.5 40.5 0.94
+                      Limits{"kitti_odom_seq06_f000-050", 51, 1.6, 0.9, 1.0, 1.0, 0.5}),         // 1.06 0.598 (no heights)
+    [](const ::testing::TestParamInfo<Limits>& i) {
+      return std::string(i.param.name).rfind("kitti_raw", 0) == 0 ? std::string("RawDrive0013") : std::string("Odometry06");
+    });
+
+}  // namespace
