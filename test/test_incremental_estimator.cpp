@@ -231,3 +231,37 @@ TEST(IncrementalEstimator, ResetGivesTheSameResultsAsAFreshEstimator) {
   EXPECT_TRUE(sameMap(shifted, reused.map().layer(ElevationMap::Layer::kLastUpdate, g)));
   EXPECT_TRUE(fresh.groundTCamera0().isApprox(reused.groundTCamera0(), 1e-12));
 }
+
+TEST(IncrementalEstimator, DroppedFramesCostLittle) {
+  // A camera faster than the node: only every 2nd, 3rd or 4th frame arrives (stamps true, so the
+  // prediction scales with the gap). Position error at frame 24 (24 m) against the full-rate run;
+  // issue 11 asks for at most 1.5x the full-rate drift: NOT met beyond every 2nd frame on this
+  // rendered drive (bump scene), measured (this code): full rate 1.28 cm, every 2nd 2.43 cm, 3rd
+  // 7.36 cm, 4th 30.2 cm (with prealign_refine_iterations 8: 1.28, 1.08, 2.26, 9.41 cm). On KITTI
+  // 06 every 2nd / 3rd frame: 1.21 / 1.06 % end drift against 1.06 % at full rate.
+  const int n = 25;
+  const auto seq = makeSequence(sim::SceneKind::kBumpAndCurb, n, false);
+  std::vector<sim::RenderedPair> frames;
+  for (int k = 0; k < n; ++k) frames.push_back(seq->gen.render(k));
+  auto endError = [&](int every) {
+    IncrementalEstimator est(seq->rig, IncrementalEstimatorOptions());
+    FrameResult r;
+    for (int k = 0; k < n; k += every) {
+      r = est.processFrame(frames[static_cast<size_t>(k)].left.image, frames[static_cast<size_t>(k)].right.image,
+                           seq->gen.frames()[static_cast<size_t>(k)].time_s);
+      EXPECT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked)
+          << "every " << every << ", frame " << k << ": " << toString(r.status) << " " << r.message;
+    }
+    return positionError(*seq, r, n - 1);
+  };
+  const double full = endError(1);
+  std::printf("position error at 24 m: full rate %.2f cm", 100 * full);
+  EXPECT_LT(full, 0.02);
+  const double limit_m[5] = {0.0, 0.0, 0.04, 0.11, 0.45};  // under twice the measured figures
+  for (int every : {2, 3, 4}) {
+    const double e = endError(every);
+    std::printf(", every %d: %.2f cm", every, 100 * e);
+    EXPECT_LT(e, limit_m[every]) << "every " << every;
+  }
+  std::printf("\n");
+}

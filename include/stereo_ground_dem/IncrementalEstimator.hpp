@@ -43,6 +43,7 @@ struct IncrementalEstimatorOptions {
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
+  int prealign_refine_iterations = 0;     ///< then at the next finer level when the motion surprised (0: never)
   bool temporal_checkerboard = false;     ///< temporal pairs use every other pixel
   /// Also align the current left image with the previous RIGHT image (the paper's third pair).
   /// Off by default: that pair ties the motion to the stereo calibration, so a real rig's small

@@ -42,7 +42,9 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
   if (!check.isValid(&w)) return bad(w);
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
-  if (prealign_level < 0 || prealign_iterations < 0) return bad("prealign_level and prealign_iterations must be >= 0");
+  if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0) {
+    return bad("prealign_level, prealign_iterations and prealign_refine_iterations must be >= 0");
+  }
   if (!(max_init_std_m > 0.0)) return bad("max_init_std_m must be > 0");
   if (rectification_startup_pairs < 0 || rectification_check_period_frames < 0) {
     return bad("rectification_startup_pairs and rectification_check_period_frames must be >= 0");
@@ -494,6 +496,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     for (int sl : slots) prob.targets.push_back(all_targets[sl]);
     prob.estimate_heights = false;
     double best = std::numeric_limits<double>::infinity();
+    size_t chosen = 0;
     bool good = false;
     // Without a velocity (the first tracked frame, after a failure: rare) every start is tried;
     // with one, the first good one ends the search.
@@ -530,12 +533,42 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       if (cost < best) {
         good = usual;
         best = cost;
+        chosen = k;
         state.camera_T_ground = s.camera_T_ground;
         state.photometric = photo3;
         for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
       }
     }
     res.prealign_cost = best;
+    // Optionally (prealign_refine_iterations, off by default), when the motion was not what the
+    // constant velocity predicted (another start won, no velocity was known, or frames were
+    // dropped), the chosen start is refined one pyramid level finer: the coarse level gives the
+    // wide basin that abrupt attitude changes need, the finer one the precision before the joint
+    // levels. Measured with 8 iterations: the bouncing zoo scene 2.29 -> 0.98 % drift and 0.46 ->
+    // 0.12 deg, every 3rd / 4th frame of a rendered drive 7.4 -> 2.3 cm / 30 -> 9.4 cm; but on
+    // KITTI 06 one frame (8, parked cars, before the obstacle test) lands 32 cm long: 1.06 -> 1.42 %.
+    const bool surprising = chosen > 0 || !predictor_.velocityKnown() || dt > 1.5 * options_.nominal_frame_period_s;
+    if (std::isfinite(best) && surprising && options_.prealign_refine_iterations > 0 && prob.level > 0) {
+      const GroundGrid chosen = viewWindow(state.camera_T_ground);
+      if (!chosen.sameLayout(window)) {
+        window = chosen;
+        initialHeights(window, state.camera_T_ground, &heights, &info);
+      }
+      SurfaceAlignerOptions refine = pre;
+      refine.max_iterations = options_.prealign_refine_iterations;
+      AlignmentProblem finer = prob;
+      finer.level = prob.level - 1;
+      SurfaceState s;
+      s.camera_T_ground = state.camera_T_ground;
+      s.heights = heights;
+      for (int sl : slots) s.photometric.push_back(state.photometric[static_cast<size_t>(sl)]);
+      const AlignmentReport rep = SurfaceAligner(refine).align(finer, s);
+      res.reports.push_back(rep);
+      if (!rep.degenerate && s.camera_T_ground.matrix().allFinite()) {
+        state.camera_T_ground = s.camera_T_ground;
+        for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
+      }
+    }
     if (!std::isfinite(best)) {
       state.camera_T_ground = predicted;
       state.photometric = {statsPhotometric(*pl, *pr, predicted), statsPhotometric(*pl, *prev_left_, predicted),
