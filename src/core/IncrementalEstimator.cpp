@@ -544,8 +544,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     // constant velocity predicted (another start won, no velocity was known, or frames were
     // dropped), the chosen start is refined one pyramid level finer: the coarse level gives the
     // wide basin that abrupt attitude changes need, the finer one the precision before the joint
-    // levels. Measured with 8 iterations: the bouncing zoo scene 2.29 -> 0.98 % drift and 0.46 ->
-    // 0.12 deg, every 3rd / 4th frame of a rendered drive 7.4 -> 2.3 cm / 30 -> 9.4 cm; but on
+    // levels. Measured with 8 iterations: the bouncing zoo scene 1.81 -> 0.39 % drift and 0.46 ->
+    // 0.07 deg, every 3rd / 4th frame of a rendered drive 7.4 -> 2.3 cm / 30 -> 9.4 cm; but on
     // KITTI 06 one frame (8, parked cars, before the obstacle test) lands 32 cm long: 1.06 -> 1.42 %.
     const bool surprising = chosen > 0 || !predictor_.velocityKnown() || dt > 1.5 * options_.nominal_frame_period_s;
     if (std::isfinite(best) && surprising && options_.prealign_refine_iterations > 0 && prob.level > 0) {
