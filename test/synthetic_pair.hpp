@@ -2,8 +2,10 @@
 // Shared by the stereo-mode and obstacle tests: a rendered KITTI-like pair with its truth, and
 // the median / 95th percentile of a list of errors.
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
+#include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
 #include "stereo_ground_dem/sim/StereoRenderer.hpp"
 
@@ -44,6 +46,22 @@ inline SyntheticPair renderPair(sim::SceneKind kind, bool obstacles = false) {
   c.ground_T_left = sim::SequenceGenerator::cameraPose(c.scene, sim::SequenceOptions(), 0.0, 0.0, 0.0);
   c.pair = renderer.renderPair(c.ground_T_left, {1.2, 10.0}, {1.0, 0.0}, 0.0, 3);
   return c;
+}
+
+/// Absolute height errors [m] of the observed vertices at camera depth [near, far), excluding
+/// obstacle footprints, in the true ground frame.
+inline std::vector<double> heightErrors(const SyntheticPair& c, const StereoResult& r, double near_m, double far_m) {
+  const Eigen::Isometry3d true_T_est = c.ground_T_left * r.ground_T_camera.inverse();
+  std::vector<double> e;
+  for (int v = 0; v < r.grid.vertexCount(); ++v) {
+    if (!std::isfinite(r.heights[v])) continue;
+    const Eigen::Vector2d xy = r.grid.position(v);
+    const Eigen::Vector3d p = true_T_est * Eigen::Vector3d(xy.x(), xy.y(), r.heights[v]);
+    const double depth = (c.ground_T_left.inverse() * p).z();
+    if (depth < near_m || depth >= far_m || c.scene.insideObstacleFootprint(p.x(), p.y(), 0.0)) continue;
+    e.push_back(std::abs(p.z() - c.scene.terrainHeight(p.x(), p.y())));
+  }
+  return e;
 }
 
 }  // namespace test

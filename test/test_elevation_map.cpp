@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 
+#include "same_layer.hpp"
 #include "stereo_ground_dem/ElevationMap.hpp"
 
 using namespace stereo_ground_dem;
@@ -58,15 +59,7 @@ class Archive : public ::testing::Test {
   fs::path dir_;
 };
 
-bool sameLayer(const cv::Mat& a, const cv::Mat& b) {
-  if (a.size() != b.size()) return false;
-  for (int r = 0; r < a.rows; ++r)
-    for (int c = 0; c < a.cols; ++c) {
-      const float x = a.at<float>(r, c), y = b.at<float>(r, c);
-      if (std::isnan(x) != std::isnan(y) || (!std::isnan(x) && x != y)) return false;
-    }
-  return true;
-}
+using test::sameLayer;
 
 const ElevationMap::Layer kLayers[] = {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance,
                                        ElevationMap::Layer::kObservations, ElevationMap::Layer::kLastUpdate,

@@ -6,6 +6,7 @@
 #include <map>
 #include <opencv2/imgproc.hpp>
 
+#include "same_layer.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/eval/DemMetrics.hpp"
 #include "stereo_ground_dem/eval/TrajectoryMetrics.hpp"
@@ -47,15 +48,7 @@ double positionError(const Sequence& s, const FrameResult& r, int k) {
 
 cv::Mat layer(const ElevationMap& m, const GroundGrid& g) { return m.layer(ElevationMap::Layer::kElevation, g); }
 
-bool sameMap(const cv::Mat& a, const cv::Mat& b) {
-  if (a.size() != b.size()) return false;
-  for (int r = 0; r < a.rows; ++r)
-    for (int c = 0; c < a.cols; ++c) {
-      const float x = a.at<float>(r, c), y = b.at<float>(r, c);
-      if (std::isnan(x) != std::isnan(y) || (!std::isnan(x) && x != y)) return false;
-    }
-  return true;
-}
+using test::sameLayer;
 
 }  // namespace
 
@@ -110,7 +103,7 @@ TEST(IncrementalEstimator, BadFramesAreRejectedAndLeaveTheMapAlone) {
     const FrameResult res = est.processFrame(l, r, t);
     EXPECT_EQ(res.status, FrameStatus::kRejectedInput) << what;
     EXPECT_NE(res.message.find(what), std::string::npos) << res.message;
-    EXPECT_TRUE(sameMap(before, layer(est.map(), grid))) << what << ": the map changed";
+    EXPECT_TRUE(sameLayer(before, layer(est.map(), grid))) << what << ": the map changed";
   };
   const cv::Mat black(seq->rig.height, seq->rig.width, CV_8U, cv::Scalar(0));
   const cv::Mat white(seq->rig.height, seq->rig.width, CV_8U, cv::Scalar(255));
@@ -224,11 +217,11 @@ TEST(IncrementalEstimator, ResetGivesTheSameResultsAsAFreshEstimator) {
   EXPECT_TRUE(reused.map().bounds().sameLayout(g));
   for (auto l : {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance, ElevationMap::Layer::kObservations,
                  ElevationMap::Layer::kObstacle}) {
-    EXPECT_TRUE(sameMap(fresh.map().layer(l, g), reused.map().layer(l, g))) << "layer " << static_cast<int>(l);
+    EXPECT_TRUE(sameLayer(fresh.map().layer(l, g), reused.map().layer(l, g))) << "layer " << static_cast<int>(l);
   }
   // ... and the map's last-update layer holds those frame indices
   cv::Mat shifted = fresh.map().layer(ElevationMap::Layer::kLastUpdate, g) + static_cast<float>(n + 1);
-  EXPECT_TRUE(sameMap(shifted, reused.map().layer(ElevationMap::Layer::kLastUpdate, g)));
+  EXPECT_TRUE(sameLayer(shifted, reused.map().layer(ElevationMap::Layer::kLastUpdate, g)));
   EXPECT_TRUE(fresh.groundTCamera0().isApprox(reused.groundTCamera0(), 1e-12));
 }
 

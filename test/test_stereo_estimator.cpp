@@ -19,21 +19,7 @@ using Errors = test::Quantiles;
 using Case = test::SyntheticPair;
 Case render(sim::SceneKind kind) { return test::renderPair(kind); }
 
-/// Absolute height errors [m] of the observed vertices at camera depth [near, far), excluding
-/// obstacle footprints, in the true ground frame.
-std::vector<double> heightErrors(const Case& c, const StereoResult& r, double near_m, double far_m) {
-  const Eigen::Isometry3d true_T_est = c.ground_T_left * r.ground_T_camera.inverse();
-  std::vector<double> e;
-  for (int v = 0; v < r.grid.vertexCount(); ++v) {
-    if (!std::isfinite(r.heights[v])) continue;
-    const Eigen::Vector2d xy = r.grid.position(v);
-    const Eigen::Vector3d p = true_T_est * Eigen::Vector3d(xy.x(), xy.y(), r.heights[v]);
-    const double depth = (c.ground_T_left.inverse() * p).z();
-    if (depth < near_m || depth >= far_m || c.scene.insideObstacleFootprint(p.x(), p.y(), 0.0)) continue;
-    e.push_back(std::abs(p.z() - c.scene.terrainHeight(p.x(), p.y())));
-  }
-  return e;
-}
+using test::heightErrors;
 
 StereoResult run(const Case& c, const StereoEstimatorOptions& o = StereoEstimatorOptions()) {
   const StereoEstimator est(c.rig, o);
