@@ -382,12 +382,14 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   if (!std::isfinite(stamp_s)) return reject("time stamp is not finite");
   if (initialized_ && stamp_s < predictor_.lastStamp()) return reject("time stamp goes backwards");
   std::unique_ptr<ImagePyramid> pl, pr;
+  const auto t_pyr = std::chrono::steady_clock::now();
   try {
     pl = std::make_unique<ImagePyramid>(stereo_.makePyramid(left, order));
     pr = std::make_unique<ImagePyramid>(stereo_.makePyramid(right, order));
   } catch (const std::invalid_argument& e) {
     return reject(e.what());
   }
+  res.pyramid_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_pyr).count();
   const std::string bad = checkImages(*pl, *pr);
   if (!bad.empty()) return reject(bad);
   last_left_level0_ = pl->level(0).image;
@@ -482,6 +484,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // predict. The cheapest result is kept.
   SurfaceState state;
   state.heights = heights;
+  const auto t_pre = std::chrono::steady_clock::now();
   {
     SurfaceAlignerOptions pre = ao;
     pre.max_iterations = options_.prealign_iterations;
@@ -575,6 +578,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
                            statsPhotometric(*pl, *prev_right_, predicted)};
     }
   }
+  res.prealign_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_pre).count();
   const GroundGrid aligned_window = viewWindow(state.camera_T_ground);
   if (!aligned_window.sameLayout(window)) {
     window = aligned_window;
@@ -594,6 +598,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   res.obstacle_pixels = obstacles.pixels;
 
   // ---- 3. heights, motion and photometry jointly, coarse to fine
+  const auto t_joint = std::chrono::steady_clock::now();
   SurfaceAlignerOptions ao_static = ao;
   ao_static.estimate_motion = false;
   ao.max_iterations = ao_static.max_iterations = options_.fine_iterations;
@@ -632,11 +637,15 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
     stereo_.levelBasis(window, l, state.heights, state.camera_T_ground, &basis, &prob.update_weight);
     prob.basis = basis.size() > 0 ? &basis : nullptr;
-    prob.want_motion_information = temporal && l == options_.temporal_finest_level;
+    // Once per frame: at the first pass of the finest level with motion (a second pass after the
+    // consistency test changes the motion by millimetres; the information hardly).
+    prob.want_motion_information =
+        options_.motion_information && temporal && l == options_.temporal_finest_level && !consistency_checked;
     const SurfaceAligner& aligner = l >= 2 ? (temporal ? aligner_motion_coarse : aligner_static_coarse)
                                            : (temporal ? aligner_motion : aligner_static);
     last = aligner.align(prob, level_state);
     res.reports.push_back(last);
+    if (prob.want_motion_information) res.motion_information = last.motion_information;
     if (temporal && l == options_.temporal_finest_level && last.target_median_abs_residual_grey.size() >= 2) {
       res.stereo_residual_grey = last.target_median_abs_residual_grey[0];
       res.temporal_residual_grey = last.target_median_abs_residual_grey[1];
@@ -664,10 +673,10 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       }
     }
   }
+  res.joint_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_joint).count();
   std::copy_n(state.photometric.begin(), 3, res.photometric.begin());
   res.median_abs_residual_grey = last.median_abs_residual_grey;
   res.valid_pixels = last.valid_pixels;
-  res.motion_information = last.motion_information;
 
   // ---- 4. plausibility
   const Vector6d step = Se3::log(state.camera_T_ground * ground_T_camera_);  // prev camera -> current

@@ -147,7 +147,7 @@ void DemPublisher::publishPose(const FrameResult& fr, const std_msgs::Header& he
   const bool first = fr.status == FrameStatus::kInitialized || !have_previous_pose_ || previous_child_frame_ != child;
   bool fallback = false;
   const Matrix6d inc_camera = MotionCovariance::fromInformation(
-      fr.motion_information, MotionCovariance::diagonal(options_.unobserved_std_m, options_.unobserved_std_rad),
+      fr.motion_information / options_.motion_covariance_scale, MotionCovariance::diagonal(options_.unobserved_std_m, options_.unobserved_std_rad),
       &fallback);
   const Matrix6d inc_child = have_base ? MotionCovariance::changeFrame(inc_camera, base_T_camera) : inc_camera;
   nav_msgs::Odometry odom;

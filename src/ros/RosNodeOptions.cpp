@@ -1,5 +1,6 @@
 #include "stereo_ground_dem/ros/RosNodeOptions.hpp"
 
+#include <cmath>
 #include <stdexcept>
 
 namespace stereo_ground_dem {
@@ -10,6 +11,7 @@ const std::vector<std::string>& RosNodeOptions::names() {
       "publish_tf", "tf_wait_s", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
       "global_map_max_cells", "mesh_max_triangles", "occupancy_unknown_below", "path_max_poses",
       "save_directory", "diagnostic_period_s", "input_check_period_s", "unobserved_std_m", "unobserved_std_rad",
+      "motion_covariance_scale",
       "restart_back_s", "max_stamp_gap_s", "image_transport"};
   return kNames;
 }
@@ -37,6 +39,7 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("input_check_period_s", o.input_check_period_s, o.input_check_period_s);
   pnh.param("unobserved_std_m", o.unobserved_std_m, o.unobserved_std_m);
   pnh.param("unobserved_std_rad", o.unobserved_std_rad, o.unobserved_std_rad);
+  pnh.param("motion_covariance_scale", o.motion_covariance_scale, o.motion_covariance_scale);
   pnh.param("restart_back_s", o.restart_back_s, o.restart_back_s);
   pnh.param("max_stamp_gap_s", o.max_stamp_gap_s, o.max_stamp_gap_s);
   pnh.param("image_transport", o.image_transport, o.image_transport);
@@ -50,6 +53,9 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   if (o.mesh.max_triangles < 2) bad.push_back("~mesh_max_triangles must be >= 2");
   if (o.path_max_poses < 1) bad.push_back("~path_max_poses must be >= 1");
   if (!(o.unobserved_std_m > 0.0) || !(o.unobserved_std_rad > 0.0)) bad.push_back("~unobserved_std_* must be > 0");
+  if (!(o.motion_covariance_scale > 0.0) || !std::isfinite(o.motion_covariance_scale)) {
+    bad.push_back("~motion_covariance_scale must be > 0");
+  }
   if (!(o.diagnostic_period_s > 0.0) || !(o.input_check_period_s > 0.0)) bad.push_back("~*_period_s must be > 0");
   if (!(o.restart_back_s >= 0.0)) bad.push_back("~restart_back_s must be >= 0");
   if (!(o.max_stamp_gap_s > 0.0)) bad.push_back("~max_stamp_gap_s must be > 0");

@@ -287,10 +287,11 @@ int runSequence(const Args& a) {
   for (const std::string& w : seq.warnings()) warn(w);
   const int n = a.frames > 0 ? std::min(a.frames, seq.size()) : seq.size();
   checkOutputDirectory(a.out);
+  o.estimator.motion_information = false;  // only the ROS odometry covariance uses it
   IncrementalEstimator est(seq.rig(), o.estimator);
   GreyConverter conv(o.input);
   std::ofstream timing(a.out + "/timing.csv");
-  timing << "frame,ms\n";
+  timing << "frame,ms,pyramid_ms,prealign_ms,obstacle_ms,joint_ms,other_ms,evaluations\n";
   std::ofstream frames(a.out + "/frames.csv");
   frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
@@ -336,7 +337,11 @@ int runSequence(const Args& a) {
     }
     ms_all.push_back(fr.time_ms);
     if (est.initialized()) xy.push_back(fr.ground_T_camera.translation().head<2>());
-    timing << i << "," << fr.time_ms << "\n";
+    int evaluations = 0;
+    for (const AlignmentReport& r : fr.reports) evaluations += r.evaluations;
+    timing << i << "," << fr.time_ms << "," << fr.pyramid_ms << "," << fr.prealign_ms << "," << fr.obstacle_ms << ","
+           << fr.joint_ms << "," << fr.time_ms - fr.pyramid_ms - fr.prealign_ms - fr.obstacle_ms - fr.joint_ms << ","
+           << evaluations << "\n";
     std::string msg = fr.message;
     std::replace(msg.begin(), msg.end(), ',', ';');
     std::replace(msg.begin(), msg.end(), '\n', ' ');

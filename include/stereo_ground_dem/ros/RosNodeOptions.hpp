@@ -34,6 +34,11 @@ struct RosNodeOptions {
   double input_check_period_s = 2.0;
   double unobserved_std_m = 0.5;      ///< covariance of frames without a motion estimate [m]
   double unobserved_std_rad = 0.1;    ///< ... [rad]
+  /// Variance factor on the per-frame motion covariance from the estimator's information, which
+  /// assumes independent pixel noise: on KITTI 06 (51 frames) the per-frame motion errors against
+  /// the ground truth were 43-108x (translation) and 77-110x (rotation) its standard deviations,
+  /// so the variances are scaled by 100^2.
+  double motion_covariance_scale = 1e4;
   double restart_back_s = 0.05;       ///< a stamp older than the last by more starts a new map [s]
   double max_stamp_gap_s = 2.0;       ///< a stamp newer than the last by more starts a new map [s]
   std::string image_transport = "raw";
