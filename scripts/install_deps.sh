@@ -19,6 +19,10 @@ PKGS=(
   libstd-srvs-dev libdiagnostic-msgs-dev libtf2-msgs-dev libtf2-eigen-dev python3-tf2-ros
   python3-std-srvs python3-genmsg python3-diagnostic-msgs python3-nav-msgs python3-roslib
   ros-stereo-image-proc libtbb-dev rviz
+  # stereo_image_proc's and image_proc's package.xml, launch files and nodelet plugin lists (the
+  # ros-* packages hold only the executables: without these the live-camera launch file fails
+  # with "Resource not found: stereo_image_proc")
+  libstereo-image-proc-dev ros-image-proc libimage-proc-dev
   # the README's ROS commands on a fresh machine: rosrun (rosbash), roslaunch, rosbag play; rviz
   # headless for the screenshot (docs/ros.md): Xvfb, xauth and imagemagick's import
   rosbash xvfb xauth imagemagick

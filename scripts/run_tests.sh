@@ -15,7 +15,13 @@ status=$?
 set -e
 grep -E "^\[ *(RUN|OK|FAILED|PASSED) *\]|tests? ran|FAILURE|Failure" "$WS/test.log" | grep -v "^\[ RUN" | tail -n 200 || true
 [ $status -eq 0 ] || { tail -n 80 "$WS/test.log"; echo "run_tests: catkin_make run_tests failed ($status)"; }
+# Every command of README.md and docs/ros.md, run verbatim on the built workspace (about 2 min);
+# its JUnit file is counted by catkin_test_results below.
+mkdir -p "$WS/build/test_results/stereo_ground_dem"
 set +e
+/usr/bin/python3 "$REPO/scripts/check_doc_commands.py" \
+  --junit "$WS/build/test_results/stereo_ground_dem/doc_commands.xml" > "$WS/doc_commands.log" 2>&1
+grep -E "^(FAIL|doc_commands:)" "$WS/doc_commands.log"
 catkin_test_results "$WS/build/test_results"
 results=$?
 set -e
