@@ -37,6 +37,57 @@ def free_port():
     return port
 
 
+def private_master(log_dir=None, prefix='sgd_realtime_'):
+    """Points this process (and its children) at a master of its own on a free port, with its logs in
+    log_dir (a new temporary folder if None): ROS_MASTER_URI and ROS_HOME. Call before importing rospy.
+    Returns the port (start_node starts the master there)."""
+    port = free_port()
+    os.environ['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % port
+    os.environ['ROS_HOME'] = log_dir or tempfile.mkdtemp(prefix=prefix)
+    os.makedirs(os.environ['ROS_HOME'], exist_ok=True)
+    return port
+
+
+def start_node(port, stereo_ns, launch_args, log_path, timeout_s=60.0):
+    """roslaunch dem_nodelet.launch (master on port, output:=log, its console into log_path) and wait
+    until the nodelet's ~reset service is up (at most timeout_s). Returns the roslaunch process."""
+    import rosgraph
+    with open(log_path, 'w') as out:
+        launch = subprocess.Popen(['roslaunch', '-p', str(port), 'stereo_ground_dem', 'dem_nodelet.launch',
+                                   'stereo_ns:=' + stereo_ns, 'output:=log'] + list(launch_args),
+                                  stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        master = rosgraph.Master('/sgd_realtime_check')
+        end = time.time() + timeout_s
+        while time.time() < end:
+            try:
+                master.lookupService('/stereo_ground_dem/reset')
+                break
+            except Exception:  # not up yet
+                time.sleep(0.2)
+    except BaseException:
+        stop_node(launch)
+        raise
+    return launch
+
+
+def stop_node(launch, timeout_s=40.0):
+    """SIGINT to roslaunch (as Ctrl-C), SIGKILL to its process group if it has not ended in timeout_s."""
+    launch.send_signal(signal.SIGINT)
+    try:
+        launch.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(launch.pid, signal.SIGKILL)
+
+
+def diagnostic_count(diag, key):
+    """An integer value of the node's diagnostics (dict key -> string); -1 if absent or not a number."""
+    try:
+        return int(diag.get(key, 'nan'))
+    except ValueError:
+        return -1
+
+
 def read_poses(path):
     out = []
     with open(path) as f:
@@ -80,12 +131,8 @@ def main():
     args = ap.parse_args()
 
     # a master of our own, before rospy is imported
-    port = free_port()
-    os.environ['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % port
-    os.environ['ROS_HOME'] = args.log_dir or tempfile.mkdtemp(prefix='sgd_realtime_')
-    os.makedirs(os.environ['ROS_HOME'], exist_ok=True)
+    port = private_master(args.log_dir)
     import rosbag
-    import rosgraph
     import rospy
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
@@ -106,19 +153,8 @@ def main():
     index_of = {s: k for k, s in enumerate(stamps)}
 
     log_path = os.path.join(os.environ['ROS_HOME'], 'launch.txt')
-    with open(log_path, 'w') as out:
-        launch = subprocess.Popen(['roslaunch', '-p', str(port), 'stereo_ground_dem', 'dem_nodelet.launch',
-                                   'stereo_ns:=' + args.stereo_ns, 'output:=log'] + args.launch_args,
-                                  stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+    launch = start_node(port, args.stereo_ns, args.launch_args, log_path)
     try:
-        master = rosgraph.Master('/sgd_realtime_check')
-        end = time.time() + 60
-        while time.time() < end:
-            try:
-                master.lookupService('/stereo_ground_dem/reset')
-                break
-            except Exception:  # not up yet
-                time.sleep(0.2)
         rospy.init_node('sgd_realtime_check', disable_signals=True)
         lock = threading.Lock()
         image_wall, dem_wall, odoms, diag = {}, {}, {}, {}
@@ -155,20 +191,13 @@ def main():
         for s in subs:
             s.unregister()
     finally:
-        launch.send_signal(signal.SIGINT)
-        try:
-            launch.wait(timeout=40)
-        except subprocess.TimeoutExpired:
-            os.killpg(launch.pid, signal.SIGKILL)
+        stop_node(launch)
     if play.returncode != 0:
         print('realtime check: rosbag play failed:\n' + play.stdout)
         return 2
 
     def count(key):
-        try:
-            return int(diag.get(key, 'nan'))
-        except ValueError:
-            return -1
+        return diagnostic_count(diag, key)
     received = count('synchronized frames')
     mapped = count('initialized') + count('tracked') + count('recovered')
     dropped = count('dropped (busy: replaced by a newer frame)')
