@@ -185,3 +185,52 @@ INSTANTIATE_TEST_SUITE_P(
     });
 
 }  // namespace
+
+/// A real clip with only every `frames`-th frame (Limits::frames is the stride here): the first
+/// tracked frame comes a long gap after the initializing one, with no velocity known yet.
+class GappedClip : public Zoo {
+ protected:
+  /// A KITTI-style folder of every stride-th frame of `seq` (symbolic links), its times and poses.
+  std::string subsample(const std::string& seq, int stride) {
+    const fs::path out = dir_ / "seq";
+    fs::create_directories(out / "image_l");
+    fs::create_directories(out / "image_r");
+    fs::copy_file(seq + "/calib.txt", out / "calib.txt");
+    std::istringstream times(slurp(seq + "/times.txt")), poses(slurp(seq + "/poses.txt"));
+    std::ofstream t(out / "times.txt"), p(out / "poses.txt");
+    std::string time_line, pose_line;
+    char name[16];
+    for (int k = 0, i = 0; std::getline(times, time_line) && std::getline(poses, pose_line); ++k) {
+      if (k % stride != 0) continue;
+      for (const char* side : {"l", "r"}) {
+        std::snprintf(name, sizeof(name), "%06d.png", k);
+        const std::string src = seq + "/image_" + side + "/" + name;
+        std::snprintf(name, sizeof(name), "%06d.png", i);
+        fs::create_symlink(src, out / (std::string("image_") + side) / name);
+      }
+      t << time_line << "\n";
+      p << pose_line << "\n";
+      ++i;
+    }
+    return out.string();
+  }
+};
+
+TEST_P(GappedClip, FirstLongGapFindsTheStep) {
+  const Limits& l = GetParam();
+  const std::string seq = kShared + "/data/" + l.name;
+  if (!fs::exists(seq + "/times.txt")) GTEST_SKIP() << seq << " is not there (../shared beside the repository)";
+  Figures f = mapAndScore(subsample(seq, l.frames));
+  f.median_cm = f.p95_cm = 0.0;  // trajectory only
+  f.coverage = 1.0;
+  expectWithin(l, f);
+}
+
+// KITTI raw 0013, every 3rd frame (0.3 s, ~3.6 m per step): the motion search without a velocity
+// took the cheapest step (0.4 m: far ground and everything above it barely change there) and the
+// constant velocity kept it: 124 % drift, 48.8 deg, every frame "tracked". With the local minima of
+// the search as candidates: 1.97 %, 1.36 deg. (Every 4th frame, 4.9 m steps: 121 % -> 24 %; from
+// frame 11 on, under the overpass, it locks onto half the step: open, not tested here.)
+INSTANTIATE_TEST_SUITE_P(Kitti, GappedClip,
+                         ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 3, 3.5, 2.5, 1.0, 1.0, 0.5}),
+                         [](const ::testing::TestParamInfo<Limits>&) { return std::string("RawDrive0013Every3rd"); });

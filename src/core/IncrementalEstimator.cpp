@@ -263,7 +263,7 @@ std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyr
   GroundGrid window = viewWindow(predictor_.lastPose());
   Eigen::VectorXd heights, info;
   initialHeights(window, predictor_.lastPose(), &heights, &info);
-  std::vector<std::pair<double, size_t>> scored;
+  std::vector<double> cost(grid.size(), std::numeric_limits<double>::infinity());
   for (size_t i = 0; i < grid.size(); ++i) {
     const GroundGrid w = viewWindow(grid[i]);
     if (!w.sameLayout(window)) {
@@ -278,12 +278,34 @@ std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyr
     const AlignmentReport rep = aligner.align(prob, s);
     const int samples = rep.valid_pixels + rep.outside_pixels;
     if (samples == 0) continue;
-    scored.emplace_back(rep.initial_cost / samples, i);  // per sample: comparable across overlaps
+    cost[i] = rep.initial_cost / samples;  // per sample: comparable across overlaps
   }
-  std::sort(scored.begin(), scored.end());
+  // The candidates are the local minima of the cost along the step (the cheapest heading at each
+  // step), best first, not the best poses overall: those are neighbours of one minimum. Without a
+  // velocity and after a long gap, the cheapest step is often near zero: far ground and everything
+  // above it barely change there, while the true step's minimum is only local (KITTI raw 0013,
+  // every 3rd / 4th frame: 3.6 m / 4.9 m steps, the global minimum at 0.4 m). The pre-alignment
+  // of every candidate then picks the one that aligns best.
+  const size_t rows = std::max<size_t>(1, predictor_.options().search_yaw_rad.size());
+  const size_t n = grid.size() / rows;  // searchGrid: yaw-major, steps in increasing order
+  std::vector<std::pair<double, size_t>> best_of_step;  // (cost, grid index) per step
+  for (size_t j = 0; j < n; ++j) {
+    std::pair<double, size_t> b{std::numeric_limits<double>::infinity(), j};
+    for (size_t r = 0; r < rows; ++r) b = std::min(b, std::make_pair(cost[r * n + j], r * n + j));
+    best_of_step.push_back(b);
+  }
+  std::vector<std::pair<double, size_t>> minima;
+  for (size_t j = 0; j < n; ++j) {
+    const double c = best_of_step[j].first;
+    if (!std::isfinite(c)) continue;
+    if ((j == 0 || c <= best_of_step[j - 1].first) && (j + 1 == n || c <= best_of_step[j + 1].first)) {
+      minima.push_back(best_of_step[j]);
+    }
+  }
+  std::sort(minima.begin(), minima.end());
   std::vector<Eigen::Isometry3d> out;
-  for (size_t k = 0; k < scored.size() && static_cast<int>(out.size()) < options_.search_candidates; ++k) {
-    out.push_back(grid[scored[k].second]);
+  for (size_t k = 0; k < minima.size() && static_cast<int>(out.size()) < options_.search_candidates; ++k) {
+    out.push_back(grid[minima[k].second]);
   }
   if (out.empty()) out.push_back(predictor_.lastPose());
   return out;
