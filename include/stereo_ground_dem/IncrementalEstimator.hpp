@@ -146,6 +146,9 @@ class IncrementalEstimator {
                            ImagePyramid::ColorOrder order = ImagePyramid::ColorOrder::kBgr);
 
   bool initialized() const { return initialized_; }
+  /// A velocity is known (false before the first tracked frame and after a failed one): the next
+  /// frame's start then comes from a motion search, which finds steps of up to ~4 m.
+  bool velocityKnown() const { return predictor_.velocityKnown(); }
   const ElevationMap& map() const { return map_; }
   ElevationMap& map() { return map_; }
   const Eigen::Isometry3d& groundTCamera0() const { return ground_T_camera0_; }

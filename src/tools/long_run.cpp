@@ -31,15 +31,18 @@ int main(int argc, char** argv) {
   int frames = 2000;
   double scale = 0.5;
   std::string scene_name = "flat";
-  for (int i = 1; i + 1 < argc; i += 2) {
+  auto usage = [] {
+    std::fprintf(stderr, "usage: sgd_long_run [--frames N] [--scale F] [--scene flat|bump|offroad]\n");
+    return 2;
+  };
+  for (int i = 1; i < argc; i += 2) {
+    if (i + 1 >= argc) return usage();  // a lone flag (--help) or a missing value
     if (!std::strcmp(argv[i], "--frames")) frames = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--scale")) scale = std::atof(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--scene")) scene_name = argv[i + 1];
-    else {
-      std::fprintf(stderr, "usage: sgd_long_run [--frames N] [--scale F] [--scene flat|bump|offroad]\n");
-      return 2;
-    }
+    else return usage();
   }
+  if (frames < 1 || !(scale > 0.0)) return usage();
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   sim::SceneKind kind;
   if (!sim::sceneKindFromName(scene_name, &kind)) {

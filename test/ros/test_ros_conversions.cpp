@@ -226,6 +226,28 @@ TEST(ImageMessageConverter, SharesOrSwapsBytes) {
   EXPECT_THROW(ImageMessageConverter::toMat(image("bayer_rggb8")), std::invalid_argument);
 }
 
+TEST(LatestFrameSlot, HoldsTheFrameAfterAnInitialization) {
+  // While the initializing frame is processed, the first frame that arrives is held and later ones
+  // are dropped; once it is taken, the slot keeps the newest again.
+  LatestFrameSlot<int> slot;
+  slot.holdNext();
+  EXPECT_FALSE(slot.put(1).has_value());
+  std::optional<int> dropped = slot.put(2);
+  ASSERT_TRUE(dropped.has_value());
+  EXPECT_EQ(*dropped, 2);  // the newcomer is dropped, 1 is held
+  EXPECT_EQ(*slot.put(3), 3);
+  int v = 0;
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kItem);
+  EXPECT_EQ(v, 1);
+  EXPECT_FALSE(slot.put(4).has_value());
+  dropped = slot.put(5);  // holding ended with the take: 4 is replaced
+  ASSERT_TRUE(dropped.has_value());
+  EXPECT_EQ(*dropped, 4);
+  EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kItem);
+  EXPECT_EQ(v, 5);
+  EXPECT_EQ(slot.puts(), 5);
+}
+
 TEST(LatestFrameSlot, KeepsOnlyTheNewest) {
   LatestFrameSlot<int> slot;
   EXPECT_FALSE(slot.put(1).has_value());

@@ -28,9 +28,10 @@ class LatestFrameSlot {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (closed_) return std::optional<T>(std::move(item));
+      ++puts_;
+      if (item_ && hold_) return std::optional<T>(std::move(item));  // the held one stays
       if (item_) replaced = std::move(item_);
       item_ = std::move(item);
-      ++puts_;
     }
     cv_.notify_one();
     return replaced;
@@ -45,12 +46,21 @@ class LatestFrameSlot {
     if (item_) {
       *out = std::move(*item_);
       item_.reset();
+      hold_ = false;
       return Taken::kItem;
     }
     woken_ = false;
     return Taken::kWoken;
   }
 
+  /// Until the next item is taken, the first item put is kept and later ones are dropped (put()
+  /// returns them) instead of replacing it: the frame right after one that initializes the
+  /// estimator must be the next one, not the newest (the motion search without a velocity finds
+  /// steps of up to ~4 m, not the 6 m of the 0.5 s an initialization takes at 44 km/h).
+  void holdNext() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    hold_ = true;
+  }
   /// Makes one take() return kWoken (sticky until then): the consumer has other work (a reset).
   void wake() {
     {
@@ -85,6 +95,7 @@ class LatestFrameSlot {
   std::condition_variable cv_;
   std::optional<T> item_;
   bool woken_ = false;
+  bool hold_ = false;
   bool closed_ = false;
   long puts_ = 0;
 };
