@@ -127,7 +127,8 @@ struct FrameResult {
   double prealign_cost = 0.0;            ///< motion-only pre-alignment cost per sample (best start)
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
-  /// residual far above it means the motion is wrong (TrackingCheck).
+  /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck does not
+  /// use it yet: docs/results.md, "Long gaps").
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   double stereo_residual_grey = 0.0;
   double temporal_residual_grey = 0.0;
