@@ -11,6 +11,7 @@
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/eval/DemMetrics.hpp"
 #include "stereo_ground_dem/eval/TrajectoryMetrics.hpp"
+#include "stereo_ground_dem/sim/ScenePreset.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
 
 using namespace stereo_ground_dem;
@@ -298,4 +299,79 @@ TEST(IncrementalEstimator, MotionInformationOfTrackedFrames) {
     EXPECT_GT(spitch, 2.2e-6) << "frame " << k;
     EXPECT_LT(spitch, 8.8e-6) << "frame " << k;
   }
+}
+
+TEST(IncrementalEstimator, MovingShadowsAreTestedAfterTheCoarsestJointLevel) {
+  // Moving shadows on the road: the temporal-consistency test flags them after the coarsest joint
+  // level. tracking_levels 2 (default): level 1, the test, level 1 again, level 0; tracking_levels
+  // 3: level 2, the test, levels 1 and 0 once. Both must flag the shadows and track.
+  const int n = 8;
+  sim::ScenePreset preset = sim::ScenePreset::forKind(sim::SceneKind::kShadows);
+  preset.sequence.frames = n;
+  const sim::SyntheticScene scene(preset.scene);
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  const auto seq = std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)});
+  for (int levels : {2, 3}) {
+    IncrementalEstimatorOptions o;
+    o.tracking_levels = levels;
+    IncrementalEstimator est(seq->rig, o);
+    int flagged = 0;
+    double worst = 0.0;
+    FrameResult r;
+    for (int k = 0; k < n; ++k) {
+      const sim::RenderedPair p = seq->gen.render(k);
+      r = est.processFrame(p.left.image, p.right.image, seq->gen.frames()[static_cast<size_t>(k)].time_s);
+      if (k == 0) continue;
+      ASSERT_EQ(r.status, FrameStatus::kTracked) << "tracking_levels " << levels << ", frame " << k << ": " << r.message;
+      flagged += r.moving_pixels > 0;
+      worst = std::max(worst, positionError(*seq, r, k));
+    }
+    std::printf("[ shadows  ] tracking_levels %d: moving texture flagged in %d of %d frames, worst position error %.2f cm\n",
+                levels, flagged, n - 1, 100.0 * worst);
+    EXPECT_GE(flagged, n - 2) << "tracking_levels " << levels;
+    // Measured (8 frames, default options): 5.05 cm with 2 levels, 1.07 cm with 3. Within 2x.
+    EXPECT_LT(worst, levels == 2 ? 0.10 : 0.022) << "tracking_levels " << levels;
+  }
+}
+
+TEST(IncrementalEstimator, TemporalPairsGoFinerOnSmallImages) {
+  IncrementalEstimatorOptions o;  // temporal_finest_level 1, min_temporal_width_px 500
+  const IncrementalEstimator full(sim::StereoRenderer::kittiLikeRig(1.0), o);
+  EXPECT_EQ(full.effectiveTemporalFinestLevel(1226), 1);  // level 1: 613 px
+  EXPECT_EQ(full.effectiveTemporalFinestLevel(1920), 1);
+  EXPECT_EQ(full.effectiveTemporalFinestLevel(999), 0);   // level 1 would be 499 px
+  EXPECT_EQ(full.effectiveTemporalFinestLevel(613), 0);
+  EXPECT_EQ(full.effectiveTemporalFinestLevel(640), 0);
+  o.min_temporal_width_px = 0;
+  EXPECT_EQ(IncrementalEstimator(sim::StereoRenderer::kittiLikeRig(1.0), o).effectiveTemporalFinestLevel(613), 1);
+  o.min_temporal_width_px = -1;
+  EXPECT_FALSE(o.isValid(nullptr));
+
+  // Half-width KITTI images (613 x 185): the motion from level 0 instead of level 1 (306 px).
+  const int n = 40;
+  sim::SceneOptions so = sim::SceneOptions::standard(sim::SceneKind::kFlatRoad, 1);
+  const sim::SyntheticScene scene(so);
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(0.5);
+  sim::SequenceOptions sq;
+  sq.frames = n;
+  const auto seq = std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, sq)});
+  double end_error[2] = {0.0, 0.0};
+  for (int adaptive : {0, 1}) {
+    IncrementalEstimatorOptions eo;
+    if (!adaptive) eo.min_temporal_width_px = 0;
+    IncrementalEstimator est(rig, eo);
+    FrameResult r;
+    for (int k = 0; k < n; ++k) {
+      const sim::RenderedPair p = seq->gen.render(k);
+      r = est.processFrame(p.left.image, p.right.image, seq->gen.frames()[static_cast<size_t>(k)].time_s);
+      ASSERT_NE(r.status, FrameStatus::kFailed) << "frame " << k << ": " << r.message;
+    }
+    EXPECT_EQ(r.temporal_finest_level, adaptive ? 0 : 1);
+    end_error[adaptive] = positionError(*seq, r, n - 1);
+  }
+  std::printf("[ half res ] end position error after %d m: level 1 %.2f cm, level 0 %.2f cm\n", n - 1,
+              100.0 * end_error[0], 100.0 * end_error[1]);
+  // Measured: level 1 5.41 cm, level 0 2.15 cm (over 200 m of sgd_long_run: 1.8 m against 0.23 m).
+  EXPECT_LT(end_error[1], 0.043);
+  EXPECT_GT(end_error[0], 1.5 * end_error[1]);
 }

@@ -33,6 +33,10 @@ struct IncrementalEstimatorOptions {
   bool use_map_prior = true;              ///< C_P: tie vertices to their fused map values
   double prior_weight = 1.0;              ///< scales the map information in C_P [-]
   int temporal_finest_level = 1;          ///< pyramid levels below this use the stereo pair only
+  /// ... unless that level is narrower than this: then the temporal pairs go finer, down to the
+  /// first level at least this wide (level 0 at most). Half-width KITTI images (613 px): level 0,
+  /// 8x less drift over 200 m than level 1 (306 px) at no extra time (docs/results.md) [px].
+  int min_temporal_width_px = 500;
   int tracking_levels = 2;                ///< mesh/pyramid levels used per tracked frame (<= mesh_levels)
   int iterations_per_level = 5;           ///< Gauss-Newton iterations per coarse level (>= 2)
   int fine_iterations = 3;                ///< ... at pyramid levels 0 and 1
@@ -129,6 +133,7 @@ struct FrameResult {
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
   /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck does not
   /// use it yet: docs/results.md, "Long gaps").
+  int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   double stereo_residual_grey = 0.0;
   double temporal_residual_grey = 0.0;
@@ -168,6 +173,10 @@ class IncrementalEstimator {
 
   /// The window of the lattice covering the camera's working range from camera_T_ground.
   GroundGrid viewWindow(const Eigen::Isometry3d& camera_T_ground) const;
+
+  /// The finest pyramid level of the temporal pairs for images image_width_px wide:
+  /// temporal_finest_level, or finer where that level is narrower than min_temporal_width_px.
+  int effectiveTemporalFinestLevel(int image_width_px) const;
 
  private:
   std::string checkImages(const ImagePyramid& left, const ImagePyramid& right) const;

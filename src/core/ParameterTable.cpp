@@ -74,6 +74,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("stereo_iterations_per_level", &s.iterations_per_level, "Gauss-Newton iterations per level, stereo mode", true);
   i("tracking_levels", &e.tracking_levels, "mesh/pyramid levels used for each tracked frame (<= mesh_levels)", true);
   i("temporal_finest_level", &e.temporal_finest_level, "finest pyramid level of the temporal pairs and motion", true);
+  i("min_temporal_width_px", &e.min_temporal_width_px, "... finer where that level is narrower than this [px]", true);
   i("num_threads", &a.num_threads, "threads of the pixel loop");
   b("use_map_prior", &e.use_map_prior, "tie vertices to their fused map values (C_P)", true);
   d("prior_weight", &e.prior_weight, "scale of the map information in C_P", true);
