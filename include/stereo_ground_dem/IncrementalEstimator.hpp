@@ -129,12 +129,12 @@ struct FrameResult {
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   double joint_ms = 0.0;                 ///< joint levels (heights, motion, photometry) and the consistency test
   double prealign_cost = 0.0;            ///< motion-only pre-alignment cost per sample (best start)
+  int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
+  int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
   /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck does not
   /// use it yet: docs/results.md, "Long gaps").
-  int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
-  int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   double stereo_residual_grey = 0.0;
   double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level

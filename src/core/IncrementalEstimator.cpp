@@ -693,7 +693,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     if (temporal && !consistency_checked && options_.temporal_consistency.enabled) {
       // Ground whose texture moved (a moving shadow): flagged after the coarsest joint level, so
       // that the finer temporal levels skip it. When this already was the finest temporal level
-      // (the default: tracking_levels - 1 == temporal_finest_level), it is estimated once more.
+      // (the default at KITTI resolution: levels 1 and 0, temporal down to 1), it is estimated
+      // once more.
       // tracking_levels 3 tests after level 2 instead of repeating level 1: ~7 % faster per frame
       // and better on the crest, off-road, bounce and traffic scenes, but the shadows scene's
       // heights 2x worse (docs/results.md, "Tried"), so it is not the default.
