@@ -5,7 +5,6 @@
 // Google Benchmark reports wall-clock ms per iteration; every benchmark processes real frames of
 // KITTI odometry sequence 06 (data/kitti_seq06_sample).
 #include <benchmark/benchmark.h>
-#include <malloc.h>
 
 #include <memory>
 #include <opencv2/core/utils/logger.hpp>
@@ -14,6 +13,7 @@
 #include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
+#include "stereo_ground_dem/io/AllocatorTuning.hpp"
 #include "stereo_ground_dem/io/KittiSequence.hpp"
 
 using namespace stereo_ground_dem;
@@ -155,8 +155,7 @@ BENCHMARK(BM_Traversability)->Unit(benchmark::kMillisecond);
 int main(int argc, char** argv) {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   // Per-frame buffers of a few MB are reused instead of being mapped and zeroed anew each frame.
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+  AllocatorTuning::apply();  // as dem_offline and the nodelet
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -32,6 +32,7 @@
 
 #include "stereo_ground_dem/DemParametersConfig.h"
 #include "stereo_ground_dem/ParameterTable.hpp"
+#include "stereo_ground_dem/io/AllocatorTuning.hpp"
 #include "stereo_ground_dem/ros/DemDiagnostics.hpp"
 #include "stereo_ground_dem/ros/DemPublisher.hpp"
 #include "stereo_ground_dem/ros/DemServices.hpp"
@@ -149,6 +150,9 @@ void DemNodelet::readParameters() {
 
 void DemNodelet::onInit() {
   readParameters();
+  if (options_.tune_allocator && !AllocatorTuning::apply()) {
+    NODELET_WARN("~tune_allocator: the C library refused the allocator settings (not glibc?); frames will be slower");
+  }
   queues_ = std::make_unique<PersistentCallbackQueues>(2);
   nh_ = queues_->singleThreaded(getNodeHandle());
   pnh_ = queues_->singleThreaded(getPrivateNodeHandle());

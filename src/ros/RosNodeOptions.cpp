@@ -7,7 +7,7 @@ namespace stereo_ground_dem {
 
 const std::vector<std::string>& RosNodeOptions::names() {
   static const std::vector<std::string> kNames = {
-      "queue_size", "approximate_sync", "slop_s", "lazy", "odom_frame", "base_frame", "camera_frame",
+      "queue_size", "approximate_sync", "slop_s", "lazy", "tune_allocator", "odom_frame", "base_frame", "camera_frame",
       "publish_tf", "tf_wait_s", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
       "global_map_max_cells", "mesh_max_triangles", "occupancy_unknown_below", "path_max_poses",
       "save_directory", "diagnostic_period_s", "input_check_period_s", "unobserved_std_m", "unobserved_std_rad",
@@ -22,6 +22,7 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("approximate_sync", o.approximate_sync, o.approximate_sync);
   pnh.param("slop_s", o.slop_s, o.slop_s);
   pnh.param("lazy", o.lazy, o.lazy);
+  pnh.param("tune_allocator", o.tune_allocator, o.tune_allocator);
   pnh.param("odom_frame", o.odom_frame, o.odom_frame);
   pnh.param("base_frame", o.base_frame, o.base_frame);
   pnh.param("camera_frame", o.camera_frame, o.camera_frame);

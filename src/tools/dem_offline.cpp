@@ -34,6 +34,7 @@
 #include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
+#include "stereo_ground_dem/io/AllocatorTuning.hpp"
 #include "stereo_ground_dem/io/DemExporter.hpp"
 #include "stereo_ground_dem/io/DemPicture.hpp"
 #include "stereo_ground_dem/io/DisparityPng.hpp"
@@ -410,6 +411,7 @@ int runSequence(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  AllocatorTuning::apply();  // frame buffers reused, not faulted in again every frame
   // Our errors are one line each; OpenCV's own warnings (e.g. on a missing image) would add more.
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   Args a;

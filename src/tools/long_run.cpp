@@ -5,6 +5,7 @@
 // Renders a straight drive frame by frame (nothing stored), runs the incremental estimator, and
 // prints the resident memory, the map's tiles and the pose error against the rendered truth
 // (position [m] and rotation [deg] relative to frame 0) every 100 frames.
+
 #include <malloc.h>
 
 #include <Eigen/Geometry>
@@ -14,6 +15,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "stereo_ground_dem/io/AllocatorTuning.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
@@ -50,7 +52,7 @@ int main(int argc, char** argv) {
     else return usage();
   }
   if (frames < 1 || !(scale > 0.0)) return usage();
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  AllocatorTuning::apply();  // as dem_offline
   sim::SceneKind kind;
   if (!sim::sceneKindFromName(scene_name, &kind)) {
     std::fprintf(stderr, "sgd_long_run: unknown scene '%s'\n", scene_name.c_str());

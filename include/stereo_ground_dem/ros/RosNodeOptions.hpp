@@ -18,6 +18,9 @@ struct RosNodeOptions {
   bool approximate_sync = false;      ///< approximate instead of exact time synchronization
   double slop_s = 0.01;               ///< approximate sync: max. stamp difference [s]
   bool lazy = true;                   ///< subscribe to the cameras only while an output has a subscriber
+  /// Set the process allocator to reuse a frame's large buffers (AllocatorTuning: page faults
+  /// 106,500 -> 22,800 on KITTI 06, 189 -> 166 ms median); process-wide, so a shared manager can opt out.
+  bool tune_allocator = true;
   std::string odom_frame = "odom";
   std::string base_frame = "base_link";  ///< '' publishes odom -> camera frame
   std::string camera_frame;           ///< '' takes the left image's header.frame_id
