@@ -1,13 +1,20 @@
 // The ROS layer's conversion classes without a ROS graph (plain gtest): HeightGrid <-> DEM layers,
 // traversability -> OccupancyGrid, mesh marker, camera_info / image validation, input monitor,
-// motion covariance, the worker's frame slot, stamp checks.
+// motion covariance, the worker's frame slot, stamp checks, dynamic_reconfigure's parameter list.
 #include <gtest/gtest.h>
+
+#include <boost/any.hpp>
+#include <map>
+#include <set>
 
 #include <cmath>
 #include <limits>
 #include <thread>
 
+#include "stereo_ground_dem/DemParametersConfig.h"
+#include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/ros/HeightGridConverter.hpp"
+#include "stereo_ground_dem/ros/PipelineParameters.hpp"
 #include "stereo_ground_dem/ros/HeightMeshBuilder.hpp"
 #include "stereo_ground_dem/ros/ImageMessageConverter.hpp"
 #include "stereo_ground_dem/ros/InputMonitor.hpp"
@@ -308,4 +315,49 @@ TEST(StampSequenceChecker, Verdicts) {
   EXPECT_EQ(r.message,
             "time jumped forward by 2.500 s (more than ~max_stamp_gap_s 2.000 s; the motion over the gap is unknown): "
             "starting a new map");
+}
+
+// cfg/DemParameters.cfg is written by hand: it must offer exactly the ParameterTable entries
+// flagged tunable, with their types and defaults, and ranges that hold the defaults (17 tunable
+// estimator parameters were missing from it until 2026-12-01).
+TEST(PipelineParameters, ReconfigureOffersExactlyTheTunableParameters) {
+  PipelineOptions defaults;
+  const ParameterTable table(&defaults);
+  std::map<std::string, const ParameterTable::Entry*> tunable;
+  for (const auto& e : table.entries())
+    if (e.tunable) tunable[e.name] = &e;
+  const auto& dflt = DemParametersConfig::__getDefault__();
+  const auto& lo = DemParametersConfig::__getMin__();
+  const auto& hi = DemParametersConfig::__getMax__();
+  auto number = [](const std::string& type, const boost::any& v) {
+    if (type == "double") return boost::any_cast<double>(v);
+    if (type == "int") return static_cast<double>(boost::any_cast<int>(v));
+    return boost::any_cast<bool>(v) ? 1.0 : 0.0;
+  };
+  std::set<std::string> offered;
+  for (const auto& d : DemParametersConfig::__getParamDescriptions__()) {
+    offered.insert(d->name);
+    const auto it = tunable.find(d->name);
+    if (it == tunable.end()) {
+      ADD_FAILURE() << d->name << " is in cfg/DemParameters.cfg but not a tunable ParameterTable entry";
+      continue;
+    }
+    const ParameterTable::Type t = it->second->type;
+    const std::string want = t == ParameterTable::Type::kDouble ? "double" : t == ParameterTable::Type::kInt ? "int" : "bool";
+    EXPECT_EQ(d->type, want) << d->name;
+    if (d->type != want) continue;
+    boost::any v, vlo, vhi;
+    d->getValue(dflt, v);
+    d->getValue(lo, vlo);
+    d->getValue(hi, vhi);
+    EXPECT_EQ(number(d->type, v), table.get(*it->second)) << d->name << ": the cfg default is not the table's";
+    if (d->type != "bool") {
+      EXPECT_LE(number(d->type, vlo), number(d->type, v)) << d->name;
+      EXPECT_GE(number(d->type, vhi), number(d->type, v)) << d->name;
+    }
+  }
+  for (const auto& kv : tunable) EXPECT_TRUE(offered.count(kv.first)) << kv.first << " is tunable but not in cfg/DemParameters.cfg";
+  // and the node's copy by name finds every one of them
+  PipelineOptions copy;
+  EXPECT_TRUE(PipelineParameters::fromConfig(dflt, &copy).empty());
 }
