@@ -27,7 +27,7 @@ struct Sample {
   static const Sample& get() {
     static const Sample s = [] {
       Sample x{KittiSequence::open(std::string(SGD_SOURCE_DIR) + "/data/kitti_seq06_sample"), {}, {}, {}};
-      ParameterTable(&x.options).loadYaml(std::string(SGD_SOURCE_DIR) + "/config/kitti.yaml");
+      x.options = ParameterTable::load(std::string(SGD_SOURCE_DIR) + "/config/kitti.yaml");
       for (int i = 0; i < x.seq.size(); ++i) {
         cv::Mat l, r;
         x.seq.read(i, &l, &r);

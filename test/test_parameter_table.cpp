@@ -188,3 +188,34 @@ TEST_F(ParameterYaml, RangesAreRefusedByIsValidWithTheReason) {
     }
   }
 }
+
+// ParameterTable::load: what dem_offline, sgd_long_run and sgd_benchmark run with.
+TEST_F(ParameterYaml, LoadGivesDefaultsOrTheFileValidated) {
+  const PipelineOptions defaults = ParameterTable::load("");
+  std::string why;
+  EXPECT_TRUE(defaults.isValid(&why)) << why;
+  EXPECT_EQ(defaults.estimator.tracking_levels, PipelineOptions().estimator.tracking_levels);
+
+  const std::string good = (dir_ / "good.yaml").string();
+  std::ofstream(good) << "tracking_levels: 3\n";
+  EXPECT_EQ(ParameterTable::load(good).estimator.tracking_levels, 3);
+
+  const std::string invalid = (dir_ / "invalid.yaml").string();
+  std::ofstream(invalid) << "max_range_m: 3\n";
+  try {
+    ParameterTable::load(invalid);
+    ADD_FAILURE() << "an invalid range was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "invalid parameters: stereo: need 0 < min_range_m < max_range_m");
+  }
+  // loadYaml's own refusal passes through with the file's name
+  const std::string unknown = (dir_ / "unknown.yaml").string();
+  std::ofstream(unknown) << "no_such_parameter: 1\n";
+  try {
+    ParameterTable::load(unknown);
+    ADD_FAILURE() << "an unknown name was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(unknown), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no_such_parameter"), std::string::npos) << e.what();
+  }
+}

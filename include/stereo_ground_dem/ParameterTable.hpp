@@ -56,6 +56,11 @@ class ParameterTable {
   /// Value ranges are PipelineOptions::isValid()'s job (call it after loading).
   void loadYaml(const std::string& path) const;
 
+  /// The defaults, then `path`'s values (none when empty), validated once (PipelineOptions::
+  /// isValid): what the tools run with. Throws std::runtime_error (loadYaml's errors, or "invalid
+  /// parameters: " and the reason).
+  static PipelineOptions load(const std::string& path);
+
  private:
   std::vector<Entry> entries_;
 };

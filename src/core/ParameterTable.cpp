@@ -201,6 +201,14 @@ double ParameterTable::get(const Entry& e) const {
   return 0.0;
 }
 
+PipelineOptions ParameterTable::load(const std::string& path) {
+  PipelineOptions o;
+  if (!path.empty()) ParameterTable(&o).loadYaml(path);
+  std::string why;
+  if (!o.isValid(&why)) throw std::runtime_error("invalid parameters: " + why);
+  return o;
+}
+
 void ParameterTable::loadYaml(const std::string& path) const {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("parameter file '" + path + "': cannot be opened");

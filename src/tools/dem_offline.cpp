@@ -126,14 +126,6 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-PipelineOptions loadOptions(const std::string& config) {
-  PipelineOptions o;
-  if (!config.empty()) ParameterTable(&o).loadYaml(config);
-  std::string why;
-  if (!o.isValid(&why)) throw std::runtime_error("invalid parameters: " + why);
-  return o;
-}
-
 cv::Mat toMat(const GroundGrid& g, const Eigen::VectorXd& v) {
   cv::Mat m(g.rows, g.cols, CV_32F);
   for (int r = 0; r < g.rows; ++r)
@@ -223,7 +215,7 @@ std::string frameFileName(const char* stem, int frame, const char* ext) {
 }
 
 int runPair(const Args& a) {
-  PipelineOptions o = loadOptions(a.config);
+  PipelineOptions o = ParameterTable::load(a.config);
   StereoRig rig = CalibrationReader::read(a.calib, a.cameras);
   if (!rig.rectificationWarning().empty()) warn(rig.rectificationWarning());
   const cv::Mat left = readImage(a.left);
@@ -280,7 +272,7 @@ int runPair(const Args& a) {
 }
 
 int runSequence(const Args& a) {
-  PipelineOptions o = loadOptions(a.config);
+  PipelineOptions o = ParameterTable::load(a.config);
   KittiSequenceOptions so;
   so.cameras = a.cameras;
   so.read_ground_truth = false;  // not needed for mapping; sgd_evaluate reads it

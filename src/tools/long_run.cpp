@@ -67,9 +67,7 @@ int main(int argc, char** argv) {
   const sim::SequenceGenerator gen(scene, rig, sq, ro);
   PipelineOptions po;
   try {
-    if (!config.empty()) ParameterTable(&po).loadYaml(config);
-    std::string why;
-    if (!po.isValid(&why)) throw std::runtime_error("invalid parameters: " + why);
+    po = ParameterTable::load(config);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sgd_long_run: %s\n", e.what());
     return 2;
