@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
@@ -45,8 +46,8 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
   if (!check.isValid(&w)) return bad(w);
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
-  if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0) {
-    return bad("prealign_level, prealign_iterations and prealign_refine_iterations must be >= 0");
+  if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0 || prealign_screen_iterations < 0) {
+    return bad("prealign_level, prealign_iterations, prealign_refine_iterations and prealign_screen_iterations must be >= 0");
   }
   if (!(max_init_std_m > 0.0)) return bad("max_init_std_m must be > 0");
   if (rectification_startup_pairs < 0 || rectification_check_period_frames < 0) {
@@ -477,6 +478,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const double dt = predictor_.gap(stamp_s);
   // Starting poses: the predictor's hypotheses, or the best of its search grid without a velocity.
   std::vector<Eigen::Isometry3d> starts;  // modified below: not const
+  size_t anchored_index = std::numeric_limits<size_t>::max();  // where the ground-anchored start is
   if (predictor_.velocityKnown()) {
     starts = predictor_.hypotheses(stamp_s);
   } else {
@@ -484,6 +486,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     Eigen::Isometry3d anchored;
     if (groundAnchoredPose(stereo_.checkPair(*pl, *pr), starts.front(), &anchored)) {
       starts.insert(starts.begin() + 1, anchored);
+      anchored_index = 1;
     }
     for (const Eigen::Isometry3d& p : predictor_.attitudeSteps(starts.front())) starts.push_back(p);
   }
@@ -520,6 +523,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     SurfaceAlignerOptions pre = ao;
     pre.max_iterations = options_.prealign_iterations;
     const SurfaceAligner aligner(pre);
+    // With a velocity, the attitude and scale steps are screened with fewer iterations, and only
+    // a winner among them gets the rest (on hard ground all of them are tried every frame).
+    const int screen_iterations = options_.prealign_screen_iterations;
+    SurfaceAlignerOptions pre_screen = pre;
+    pre_screen.max_iterations = screen_iterations;
+    const SurfaceAligner screen_aligner(pre_screen);
+    bool chosen_screened = false;
     AlignmentProblem prob;
     prob.reference = pl.get();
     prob.rig = &rig_;
@@ -542,6 +552,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
         Eigen::Isometry3d anchored;
         if (groundAnchoredPose(stereo_.checkPair(*pl, *pr), starts[1], &anchored)) {
           starts.insert(starts.begin() + 2, anchored);
+          anchored_index = 2;
         }
       }
       // A start far from the first (a wrong stamp's unscaled step) sees another part of the map.
@@ -557,7 +568,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
                                                      statsPhotometric(*pl, *prev_left_, starts[k]),
                                                      statsPhotometric(*pl, *prev_right_, starts[k])};
       for (int sl : slots) s.photometric.push_back(photo3[static_cast<size_t>(sl)]);
-      const AlignmentReport rep = aligner.align(prob, s);
+      const bool screened = screen_iterations > 0 && screen_iterations < pre.max_iterations && !try_all && k >= 2 &&
+                            k != anchored_index;
+      const AlignmentReport rep = (screened ? screen_aligner : aligner).align(prob, s);
       res.reports.push_back(rep);
       const int samples = rep.valid_pixels + rep.outside_pixels;
       const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
@@ -568,8 +581,31 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
         good = usual;
         best = cost;
         chosen = k;
+        chosen_screened = screened;
         state.camera_T_ground = s.camera_T_ground;
         state.photometric = photo3;
+        for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
+      }
+    }
+    if (chosen_screened && std::isfinite(best)) {
+      // the winner was screened with fewer iterations: the rest of them now
+      const GroundGrid chosen_window = viewWindow(state.camera_T_ground);
+      if (!chosen_window.sameLayout(window)) {
+        window = chosen_window;
+        initialHeights(window, state.camera_T_ground, &heights, &info);
+      }
+      SurfaceAlignerOptions rest = pre;
+      rest.max_iterations = pre.max_iterations - screen_iterations;
+      SurfaceState s;
+      s.camera_T_ground = state.camera_T_ground;
+      s.heights = heights;
+      for (int sl : slots) s.photometric.push_back(state.photometric[static_cast<size_t>(sl)]);
+      const AlignmentReport rep = SurfaceAligner(rest).align(prob, s);
+      res.reports.push_back(rep);
+      const int samples = rep.valid_pixels + rep.outside_pixels;
+      if (!rep.degenerate && s.camera_T_ground.matrix().allFinite() && samples > 0) {
+        best = rep.final_cost / samples;
+        state.camera_T_ground = s.camera_T_ground;
         for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
       }
     }

@@ -113,6 +113,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("final_undamped_step", &e.final_undamped_step, "almost undamped last step: 0 none, 1 finest level, 2 fine levels", true);
   i("search_candidates", &e.search_candidates, "search poses aligned when the velocity is unknown", true);
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
+  i("prealign_screen_iterations", &e.prealign_screen_iterations,
+    "... of the rotation/scale hypotheses, the winner then gets the rest (0: all get all)", true);
   i("prealign_refine_iterations", &e.prealign_refine_iterations, "then iterations one pyramid level finer when the motion was not the predicted one (0: never)", true);
   d("max_residual_ratio", &e.check.max_residual_ratio, "median residual above this times the usual: failure", true);
   d("max_residual_increase_grey", &e.check.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
