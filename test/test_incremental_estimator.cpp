@@ -39,6 +39,15 @@ std::unique_ptr<Sequence> makeSequence(sim::SceneKind kind, int frames, bool gai
   return std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, sq)});
 }
 
+/// The preset scene and drive of `kind` (ScenePreset, seed 1), `frames` long.
+std::unique_ptr<Sequence> makePresetSequence(sim::SceneKind kind, int frames) {
+  sim::ScenePreset preset = sim::ScenePreset::forKind(kind);
+  preset.sequence.frames = frames;
+  const sim::SyntheticScene scene(preset.scene);
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  return std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)});
+}
+
 /// The true camera0_T_camera of frame k.
 Eigen::Isometry3d truth(const Sequence& s, int k) {
   return s.gen.frames()[0].ground_T_left.inverse() * s.gen.frames()[static_cast<size_t>(k)].ground_T_left;
@@ -306,11 +315,7 @@ TEST(IncrementalEstimator, MovingShadowsAreTestedAfterTheCoarsestJointLevel) {
   // level. tracking_levels 2 (default): level 1, the test, level 1 again, level 0; tracking_levels
   // 3: level 2, the test, levels 1 and 0 once. Both must flag the shadows and track.
   const int n = 8;
-  sim::ScenePreset preset = sim::ScenePreset::forKind(sim::SceneKind::kShadows);
-  preset.sequence.frames = n;
-  const sim::SyntheticScene scene(preset.scene);
-  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
-  const auto seq = std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)});
+  const auto seq = makePresetSequence(sim::SceneKind::kShadows, n);
   for (int levels : {2, 3}) {
     IncrementalEstimatorOptions o;
     o.tracking_levels = levels;
@@ -339,11 +344,7 @@ TEST(IncrementalEstimator, HypothesesAreScreenedWithFewerIterations) {
   // every rotation and scale hypothesis is pre-aligned. Screened (3 of 8 iterations, the winner
   // gets the rest) they cost fewer evaluations; the tracking must stay as good.
   const int n = 28;
-  sim::ScenePreset preset = sim::ScenePreset::forKind(sim::SceneKind::kShadows);
-  preset.sequence.frames = n;
-  const sim::SyntheticScene scene(preset.scene);
-  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
-  const auto seq = std::make_unique<Sequence>(Sequence{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)});
+  const auto seq = makePresetSequence(sim::SceneKind::kShadows, n);
   int evaluations[2] = {0, 0};
   double end_error[2] = {0.0, 0.0};
   for (int screened : {0, 1}) {

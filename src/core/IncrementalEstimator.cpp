@@ -3,7 +3,6 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
@@ -587,27 +586,37 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
         for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
       }
     }
-    if (chosen_screened && std::isfinite(best)) {
-      // the winner was screened with fewer iterations: the rest of them now
+    // Continues the chosen start with `iterations` more motion-only iterations at pyramid `level`
+    // (the window follows the pose); keeps the result when it is sound. Returns its cost per
+    // sample, or infinity when it was not kept.
+    const auto continueChosen = [&](int iterations, int level) {
       const GroundGrid chosen_window = viewWindow(state.camera_T_ground);
       if (!chosen_window.sameLayout(window)) {
         window = chosen_window;
         initialHeights(window, state.camera_T_ground, &heights, &info);
       }
-      SurfaceAlignerOptions rest = pre;
-      rest.max_iterations = pre.max_iterations - screen_iterations;
+      SurfaceAlignerOptions more = pre;
+      more.max_iterations = iterations;
+      AlignmentProblem at_level = prob;
+      at_level.level = level;
       SurfaceState s;
       s.camera_T_ground = state.camera_T_ground;
       s.heights = heights;
       for (int sl : slots) s.photometric.push_back(state.photometric[static_cast<size_t>(sl)]);
-      const AlignmentReport rep = SurfaceAligner(rest).align(prob, s);
+      const AlignmentReport rep = SurfaceAligner(more).align(at_level, s);
       res.reports.push_back(rep);
       const int samples = rep.valid_pixels + rep.outside_pixels;
-      if (!rep.degenerate && s.camera_T_ground.matrix().allFinite() && samples > 0) {
-        best = rep.final_cost / samples;
-        state.camera_T_ground = s.camera_T_ground;
-        for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
+      if (rep.degenerate || !s.camera_T_ground.matrix().allFinite() || samples <= 0) {
+        return std::numeric_limits<double>::infinity();
       }
+      state.camera_T_ground = s.camera_T_ground;
+      for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
+      return rep.final_cost / samples;
+    };
+    if (chosen_screened && std::isfinite(best)) {
+      // the winner was screened with fewer iterations: the rest of them now
+      const double continued = continueChosen(pre.max_iterations - screen_iterations, prob.level);
+      if (std::isfinite(continued)) best = continued;
     }
     res.prealign_cost = best;
     // Optionally (prealign_refine_iterations, off by default), when the motion was not what the
@@ -619,25 +628,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     // KITTI 06 one frame (8, parked cars, before the obstacle test) lands 32 cm long: 1.06 -> 1.42 %.
     const bool surprising = chosen > 0 || !predictor_.velocityKnown() || dt > 1.5 * options_.nominal_frame_period_s;
     if (std::isfinite(best) && surprising && options_.prealign_refine_iterations > 0 && prob.level > 0) {
-      const GroundGrid chosen = viewWindow(state.camera_T_ground);
-      if (!chosen.sameLayout(window)) {
-        window = chosen;
-        initialHeights(window, state.camera_T_ground, &heights, &info);
-      }
-      SurfaceAlignerOptions refine = pre;
-      refine.max_iterations = options_.prealign_refine_iterations;
-      AlignmentProblem finer = prob;
-      finer.level = prob.level - 1;
-      SurfaceState s;
-      s.camera_T_ground = state.camera_T_ground;
-      s.heights = heights;
-      for (int sl : slots) s.photometric.push_back(state.photometric[static_cast<size_t>(sl)]);
-      const AlignmentReport rep = SurfaceAligner(refine).align(finer, s);
-      res.reports.push_back(rep);
-      if (!rep.degenerate && s.camera_T_ground.matrix().allFinite()) {
-        state.camera_T_ground = s.camera_T_ground;
-        for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
-      }
+      continueChosen(options_.prealign_refine_iterations, prob.level - 1);
     }
     if (!std::isfinite(best)) {
       state.camera_T_ground = predicted;
