@@ -45,7 +45,57 @@ def wait_for_service(master_uri, name, timeout):
     return False
 
 
+def descendants(root):
+    """PIDs of the processes below `root` (roslaunch gives each node a session of its own)."""
+    children = {}
+    for d in os.listdir('/proc'):
+        if not d.isdigit():
+            continue
+        try:
+            with open('/proc/%s/stat' % d) as f:
+                ppid = int(f.read().rsplit(')', 1)[1].split()[1])  # after the name: state, ppid
+        except (OSError, IndexError, ValueError):
+            continue
+        children.setdefault(ppid, []).append(int(d))
+    out, todo = [], [root]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.append(c)
+            todo.append(c)
+    return out
+
+
+def loaders_ready(launch_pid, timeout):
+    """Waits until every `nodelet load` process of the launch catches SIGINT. The loader installs
+    its SIGINT handler (which unloads the nodelet from the manager) only after the manager's load
+    call returned, i.e. after DemNodelet::onInit, which advertises the services early: a SIGINT in
+    between kills the loader with the default action (exit -2), a race of this check, not a fault
+    of the node. Linux: the handler shows as bit 1 of SigCgt in /proc/PID/status."""
+    start = time.time()
+    while time.time() < start + timeout:
+        loaders = waiting = 0
+        for pid in descendants(launch_pid):
+            try:
+                with open('/proc/%d/cmdline' % pid, 'rb') as f:
+                    argv = f.read().split(b'\0')
+                if b'load' not in argv or not any(a.endswith(b'nodelet') for a in argv):
+                    continue
+                with open('/proc/%d/status' % pid) as f:
+                    sigcgt = int(re.search(r'SigCgt:\s*([0-9a-fA-F]+)', f.read()).group(1), 16)
+                loaders += 1
+                waiting += not (sigcgt >> (signal.SIGINT - 1)) & 1
+            except (OSError, AttributeError, ValueError):
+                continue  # gone or not readable: nothing to wait for
+        if not waiting and (loaders or time.time() > start + 2.0):  # (none: a standalone nodelet)
+            return True
+        time.sleep(0.05)
+    return False
+
+
 def one_cycle(args, env, log_dir, k):
+    # a master of its own per cycle: a master of the last cycle that is still going down would
+    # otherwise answer for the new one, with the last cycle's service registrations
+    env = dict(env, ROS_MASTER_URI='http://127.0.0.1:%d' % free_port())
     out_path = os.path.join(log_dir, 'launch_%d.txt' % k)
     with open(out_path, 'w') as out:
         launch = subprocess.Popen(
@@ -53,6 +103,7 @@ def one_cycle(args, env, log_dir, k):
              'lazy:=false', 'output:=screen'] + args.launch_args,
             stdout=out, stderr=subprocess.STDOUT, env=env, start_new_session=True)
     ready = wait_for_service(env['ROS_MASTER_URI'], '/stereo_ground_dem/reset', args.start_timeout)
+    ready = ready and loaders_ready(launch.pid, args.start_timeout)
     played = 0
     if ready and args.bag:
         # a few frames at real rate, then stop (while the last one is processed with --stop-while-processing)
@@ -104,7 +155,6 @@ def main():
     ap.add_argument('launch_args', nargs='*', help='extra NAME:=VALUE arguments of dem_nodelet.launch')
     args = ap.parse_args()
     env = dict(os.environ)
-    env['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % free_port()
     env['ROSCONSOLE_STDOUT_LINE_BUFFERED'] = '1'
     env['ROS_HOME'] = args.log_dir or tempfile.mkdtemp(prefix='sgd_shutdown_')
     log_dir = env['ROS_HOME']
