@@ -53,6 +53,10 @@ struct SurfaceAlignerOptions {
   int border_margin_px = 2;                ///< reference pixels this close to the border are unused
   double dark_level_grey = 1.5;            ///< reference / target values at or below: not used
   double saturated_level_grey = 253.5;     ///< values at or above: not used
+  /// A used reference pixel counts as textured (AlignmentReport::vertex_textured_pixels) when its
+  /// image gradient is at least this [grey/px at the level]: blank sky, glare or an untextured
+  /// wall modelled as ground tell nothing about the heights there.
+  double textured_gradient_grey_per_px = 1.0;
   double outside_penalty_factor = 3.0;     ///< a pixel warped outside its target costs rho(factor * scale)
   bool estimate_motion = false;            ///< 6-DoF twist of the reference camera
   /// After the iterations, one more step with the update constraint scaled by
@@ -162,6 +166,9 @@ struct AlignmentReport {
   Eigen::VectorXi vertex_pixels;
   /// Per fine vertex: pixels of its triangles excluded by AlignmentProblem::excluded (obstacles).
   Eigen::VectorXi vertex_excluded_pixels;
+  /// Per fine vertex: the used pixels of its triangles that are textured
+  /// (SurfaceAlignerOptions::textured_gradient_grey_per_px).
+  Eigen::VectorXi vertex_textured_pixels;
   /// Information of the motion (6x6, heights marginalized) if motion was estimated and
   /// AlignmentProblem::want_motion_information was set.
   Matrix6d motion_information = Matrix6d::Zero();

@@ -80,6 +80,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("prior_weight", &e.prior_weight, "scale of the map information in C_P", true);
   d("dark_level_grey", &a.dark_level_grey, "pixels at or below are not used [grey]", true);
   d("saturated_level_grey", &a.saturated_level_grey, "pixels at or above are not used [grey]", true);
+  d("textured_gradient_grey_per_px", &a.textured_gradient_grey_per_px,
+    "a vertex needs min_ground_pixels pixels with at least this gradient to be observed [grey/px]", true);
   // obstacles
   b("obstacles_enabled", &ob.enabled, "occlusion reasoning: exclude obstacle pixels from the ground", true);
   i("obstacle_level", &ob.level, "pyramid level of the obstacle test");

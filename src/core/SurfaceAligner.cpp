@@ -34,6 +34,9 @@ bool SurfaceAlignerOptions::isValid(std::string* why) const {
   if (!(max_lateral_m > 0.0)) return bad("max_lateral_m must be > 0");
   if (border_margin_px < 1) return bad("border_margin_px must be >= 1");
   if (!(saturated_level_grey > dark_level_grey)) return bad("saturated_level_grey must exceed dark_level_grey");
+  if (!(textured_gradient_grey_per_px >= 0.0) || !std::isfinite(textured_gradient_grey_per_px)) {
+    return bad("textured_gradient_grey_per_px must be finite and >= 0");
+  }
   if (!(outside_penalty_factor >= 0.0)) return bad("outside_penalty_factor must be >= 0");
   if (num_threads < 1) return bad("num_threads must be >= 1");
   if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0)) return bad("cg_tolerance must be in (0, 1)");
@@ -85,6 +88,7 @@ struct Chunk {
   std::vector<PairAccumulator> pair;
   std::vector<int> tri_pixels;
   std::vector<int> tri_excluded;  ///< pixels of the triangle masked out as obstacles
+  std::vector<int> tri_textured;  ///< its used pixels with a gradient of at least textured_gradient
   std::vector<float> abs_residuals;
   std::vector<std::vector<float>> pair_abs_residuals;  ///< [pair] the same samples, per pair
   void reset(const std::vector<int>& strides, size_t nt) {
@@ -93,6 +97,7 @@ struct Chunk {
     pair.assign(strides.size(), PairAccumulator());
     tri_pixels.assign(nt, 0);
     tri_excluded.assign(nt, 0);
+    tri_textured.assign(nt, 0);
     abs_residuals.clear();
     pair_abs_residuals.assign(strides.size(), {});
   }
@@ -189,6 +194,7 @@ class LevelSolver {
       }
     }
     data_scale_ = std::ldexp(1.0, 2 * p.level) / (o.image_noise_std_grey * o.image_noise_std_grey);
+    gtex2_ = static_cast<float>(o.textured_gradient_grey_per_px * o.textured_gradient_grey_per_px);
     selectWorkingSet(g, s);
     buildBasis();
     if (p.estimate_heights) {  // motion/photometry only: no height block to build
@@ -373,6 +379,7 @@ class LevelSolver {
       for (size_t i = 0; i < ns; ++i) {
         sum.tri_pixels[i] += o.tri_pixels[i];
         sum.tri_excluded[i] += o.tri_excluded[i];
+        sum.tri_textured[i] += o.tri_textured[i];
       }
       sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
       for (size_t j = 0; j < np; ++j) {
@@ -465,6 +472,7 @@ class LevelSolver {
         const float i0 = i0row[u];
         if (i0 <= dark || i0 >= sat) continue;
         ch->tri_pixels[static_cast<size_t>(ti)]++;
+        ch->tri_textured[static_cast<size_t>(ti)] += gurow[u] * gurow[u] + gvrow[u] * gvrow[u] >= gtex2_;
         const float x = (static_cast<float>(u) - cx) / fx;
         const float gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
         px.u.push_back(u);
@@ -950,11 +958,13 @@ class LevelSolver {
   void fillPixels(const Evaluation& ev, AlignmentReport* report) const {
     report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
     report->vertex_excluded_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+    report->vertex_textured_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
     for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
       const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
       for (int a = 0; a < 3; ++a) {
         report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
         report->vertex_excluded_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_excluded[k2];
+        report->vertex_textured_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_textured[k2];
       }
     }
   }
@@ -1121,6 +1131,7 @@ class LevelSolver {
   const cv::Mat* excluded_ = nullptr;
   int width_ = 0, height_ = 0;
   double data_scale_ = 1.0;
+  float gtex2_ = 0.0f;
   int threads_ = 1;
   std::vector<TriangleGeometry> tris_;
   std::vector<int> active_;   ///< compact index -> fine vertex
@@ -1194,6 +1205,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
     report.vertex_information = Eigen::VectorXd::Zero(problem.grid->vertexCount());
     report.vertex_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
     report.vertex_excluded_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
+    report.vertex_textured_pixels = Eigen::VectorXi::Zero(problem.grid->vertexCount());
     return report;
   }
   Evaluation* ev = &ws.eval[0];
