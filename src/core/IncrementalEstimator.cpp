@@ -755,8 +755,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   int jumps = 0, well_known = 0;
   for (int v = 0; v < window.vertexCount(); ++v) {
     if (last.vertex_pixels.size() == 0 || last.vertex_pixels[v] == 0 || !std::isfinite(state.heights[v])) continue;
-    if (last.vertex_pixels[v] < so.min_ground_pixels) continue;
-    // Seen, but without texture (sky behind a crest, glare): no height measurement.
+    // Too few pixels, or too few with texture (sky behind a crest, glare): no height measurement.
+    // (The textured pixels are a subset of the vertex's pixels.)
     if (last.vertex_textured_pixels[v] < so.min_ground_pixels) continue;
     // Seen mostly through obstacle pixels: the ground there is hidden, not observed.
     if (last.vertex_excluded_pixels[v] > so.hidden_pixel_ratio * last.vertex_pixels[v]) continue;

@@ -340,8 +340,8 @@ StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const Image
     if (hit) res.obstacle[v] = 1.0;
     else if (res.obstacle_evidence.ground[static_cast<size_t>(v)]) res.obstacle[v] = 0.0;
     // unseen, weakly seen or hidden ground stays unknown rather than invented
-    if (hit || res.obstacle_evidence.hidden[static_cast<size_t>(v)] || res.pixels[v] < o.min_ground_pixels ||
-        last.vertex_textured_pixels[v] < o.min_ground_pixels) {
+    // (too few textured pixels: also too few pixels, they are a subset)
+    if (hit || res.obstacle_evidence.hidden[static_cast<size_t>(v)] || last.vertex_textured_pixels[v] < o.min_ground_pixels) {
       res.heights[v] = nan;
     }
   }
