@@ -222,6 +222,23 @@ TEST_F(IoTest, GeoTiffRoundTripKeepsValuesNanAndGrid) {
   EXPECT_LT(fs::file_size(flat), 20000u);
 }
 
+// Overwriting a GeoTIFF leaves the other files of its folder alone. GDAL's Create() deletes an
+// existing dataset with its "sidecar" files, and its metadata readers count summary.txt (ALOS)
+// among them: dem_offline's summary.txt vanished on every run into a used folder.
+TEST_F(IoTest, GeoTiffOverwriteKeepsNeighbouringFiles) {
+  const sgd::GroundGrid grid = makeGrid(0.5, 0, 0, 3, 4);
+  const std::string file = path("dem.tif");
+  sgd::GeoTiff::write(file, cv::Mat(grid.rows, grid.cols, CV_32FC1, cv::Scalar(1.0f)), grid);
+  for (const char* name : {"summary.txt", "dem.yaml", "frames.csv", "dem.IMD", "dem.RPB", "dem_height.png"}) {
+    spit(path(name), "keep me\n");
+  }
+  sgd::GeoTiff::write(file, cv::Mat(grid.rows, grid.cols, CV_32FC1, cv::Scalar(2.0f)), grid);
+  for (const char* name : {"summary.txt", "dem.yaml", "frames.csv", "dem.IMD", "dem.RPB", "dem_height.png"}) {
+    EXPECT_EQ(slurp(path(name)), "keep me\n") << name;
+  }
+  EXPECT_EQ(sgd::GeoTiff::read(file).at<float>(1, 1), 2.0f) << "the file itself is replaced";
+}
+
 TEST_F(IoTest, GeoTiffMultiBandKeepsNamesAndOrder) {
   const sgd::GroundGrid grid = makeGrid(0.5, 2, -4, 3, 4);
   const cv::Mat a(grid.rows, grid.cols, CV_32FC1, cv::Scalar(1.5f));

@@ -110,6 +110,12 @@ void GeoTiff::writeLayers(const std::string& path, const std::vector<std::string
   options.SetNameValue("PREDICTOR", "3");  // floating-point predictor
   options.SetNameValue("BIGTIFF", "IF_SAFER");
   options.SetNameValue("INTERLEAVE", "BAND");
+  // Create() on an existing file first deletes that dataset with every file GDAL counts as its
+  // sidecar, and GDAL's satellite metadata readers count a plain summary.txt in the same folder
+  // (ALOS). dem_offline writes one there, so a run into a used folder lost it: remove only the
+  // file itself.
+  VSIStatBufL st;
+  if (VSIStatL(path.c_str(), &st) == 0 && VSIUnlink(path.c_str()) != 0) fail(path, "cannot replace the existing file");
   DatasetPtr ds(driver->Create(path.c_str(), grid.cols, grid.rows, static_cast<int>(layers.size()),
                                GDT_Float32, options.List()));
   if (!ds) fail(path, "cannot create the file");
