@@ -84,6 +84,15 @@ TEST_F(DemOffline, SequenceModeOnTheBundledSample) {
   }
   EXPECT_EQ(n, 4);
   EXPECT_NEAR(z_last, 3.576, 0.1);  // KITTI ground truth of frame 3: 3.576 m forward
+  // The camera above the local ground: NaN while only the ground ahead is mapped (4 frames, 4 m).
+  std::ifstream frames(out + "/frames.csv");
+  std::string header;
+  std::getline(frames, header);
+  EXPECT_NE(header.find(",moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,message"), std::string::npos)
+      << header;
+  const std::vector<std::string> heights = column(out, 13);
+  ASSERT_EQ(heights.size(), 4u);
+  for (const std::string& h : heights) EXPECT_EQ(h, "nan");
 }
 
 TEST_F(DemOffline, BadInputGivesOneLineAndNonZeroExit) {

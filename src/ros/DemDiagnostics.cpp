@@ -78,6 +78,9 @@ void DemDiagnostics::dropped() {
 void DemDiagnostics::restarted(const std::string& why, bool warning) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++counts_.restarts;
+  recent_attitudes_.clear();
+  last_attitude_ = GroundAttitudeEstimate();
+  mount_warning_.clear();
   if (warning) {
     report("map reset: " + why, false);
   } else {
@@ -106,6 +109,15 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   }
   map_tiles_ = r.map_tiles;
   map_memory_mb_ = r.map_memory_mb;
+  if (r.status != FrameStatus::kFailed) {
+    last_attitude_ = r.attitude;
+    recent_attitudes_.push_back(r.attitude);
+    if (recent_attitudes_.size() > kMountWindow) recent_attitudes_.pop_front();
+    const std::string w = attitude_check_.mountWarning({recent_attitudes_.begin(), recent_attitudes_.end()},
+                                                       r.nominal_attitude);
+    if (!w.empty() && w != mount_warning_) ROS_WARN_STREAM_NAMED(logger_, w);  // once per change, not per frame
+    mount_warning_ = w;
+  }
   if (!r.map_extent.empty()) map_extent_ = r.map_extent;
 }
 
@@ -161,6 +173,8 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
                  last_problem_);
   } else if (counts_.processed == 0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for the first synchronized stereo frame");
+  } else if (!mount_warning_.empty()) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, mount_warning_);
   } else {
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "mapping");
   }
@@ -188,6 +202,12 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("map tiles", map_tiles_);
   stat.add("map memory [MB]", map_memory_mb_);
   stat.add("map known extent", map_extent_);
+  constexpr double kDeg = 180.0 / M_PI;
+  stat.add("camera above the local ground: known", last_attitude_.valid);
+  stat.add("camera above the local ground: height [m]", last_attitude_.height_m);
+  stat.add("camera above the local ground: pitch [deg]", last_attitude_.pitch_rad * kDeg);
+  stat.add("camera above the local ground: roll [deg]", last_attitude_.roll_rad * kDeg);
+  stat.add("camera mount", mount_warning_.empty() ? std::string("as nominal (or not yet known)") : mount_warning_);
   stat.add("last problem", last_problem_);
   stat.add("last problem age [s]", problem_age);
 }

@@ -7,6 +7,7 @@
 
 #include <sstream>
 
+#include "stereo_ground_dem/GroundAttitude.h"
 #include "stereo_ground_dem/HeightGrid.h"
 #include "stereo_ground_dem/ros/HeightGridConverter.hpp"
 #include "stereo_ground_dem/ros/HeightMeshBuilder.hpp"
@@ -34,11 +35,12 @@ void DemPublisher::advertise(ros::NodeHandle& tf_nh, ros::NodeHandle& pnh,
   pub_mesh_ = pnh.advertise<visualization_msgs::Marker>("mesh", 1, cb, cb);
   pub_odom_ = pnh.advertise<nav_msgs::Odometry>("odom", 10, cb, cb);
   pub_path_ = pnh.advertise<nav_msgs::Path>("path", 1, cb, cb);
+  pub_attitude_ = pnh.advertise<GroundAttitude>("ground_attitude", 10, cb, cb);
 }
 
 bool DemPublisher::anySubscriber() const {
   return pub_dem_.getNumSubscribers() + pub_occupancy_.getNumSubscribers() + pub_mesh_.getNumSubscribers() +
-             pub_odom_.getNumSubscribers() + pub_path_.getNumSubscribers() >
+             pub_odom_.getNumSubscribers() + pub_path_.getNumSubscribers() + pub_attitude_.getNumSubscribers() >
              0 ||
          anyGlobalSubscriber();
 }
@@ -61,7 +63,7 @@ void DemPublisher::shutdown() {
   std::lock_guard<std::mutex> lock(publish_mutex_);
   shut_down_ = true;
   for (ros::Publisher* p : {&pub_dem_, &pub_dem_global_, &pub_occupancy_, &pub_occupancy_global_, &pub_mesh_,
-                            &pub_odom_, &pub_path_}) {
+                            &pub_odom_, &pub_path_, &pub_attitude_}) {
     p->shutdown();
   }
   tf_listener_.reset();
@@ -237,6 +239,23 @@ std::string DemPublisher::publish(const FrameResult& fr, const ElevationMap& map
   extent << std::fixed << "x " << known.x0() << " .. " << known.xOfCol(known.cols - 1) << ", y " << known.y0()
          << " .. " << known.yOfRow(known.rows - 1) << " m (" << known.cols << " x " << known.rows << ")";
   return extent.str();
+}
+
+void DemPublisher::publishAttitude(const GroundAttitudeEstimate& a, const ros::Time& stamp,
+                                   const std::string& camera_frame) {
+  std::lock_guard<std::mutex> lock(publish_mutex_);
+  if (shut_down_ || pub_attitude_.getNumSubscribers() == 0) return;
+  GroundAttitude msg;
+  msg.header.stamp = stamp;
+  msg.header.frame_id = camera_frame;
+  msg.valid = a.valid;
+  msg.height = a.height_m;
+  msg.pitch = a.pitch_rad;
+  msg.roll = a.roll_rad;
+  msg.ground_slope = a.slope_rad;
+  msg.rms = a.rms_m;
+  msg.vertices = a.vertices;
+  pub_attitude_.publish(msg);
 }
 
 }  // namespace stereo_ground_dem

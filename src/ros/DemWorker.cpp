@@ -175,6 +175,14 @@ void DemWorker::process(StereoFrame& f) {
   if (estimator_->initialized()) {
     trajectory_xy_.push_back(fr.ground_T_camera.translation().head<2>());
     record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame);
+    if (fr.status != FrameStatus::kFailed) {  // a failed frame's pose is only the prediction
+      const StereoEstimatorOptions& so = estimator_->options().stereo;
+      record.attitude = attitude_.estimate(map, fr.ground_T_camera);
+      record.nominal_attitude = GroundAttitudeEstimator::relativeToPlane(
+          Eigen::Vector3d::Zero(),
+          StereoEstimator::nominalCameraPose(so.nominal_height_m, so.nominal_pitch_down_rad, so.nominal_roll_rad).inverse());
+      publisher_.publishAttitude(record.attitude, f.stamp, f.camera_frame);
+    }
     if (fr.status != FrameStatus::kFailed) ++fused_frames_;
     auto snap = std::make_shared<MapSnapshot>();
     snap->map = std::make_shared<const ElevationMap>(map);

@@ -30,6 +30,7 @@
 
 #include "stereo_ground_dem/CalibrationReader.hpp"
 #include "stereo_ground_dem/GreyConverter.hpp"
+#include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
@@ -282,11 +283,13 @@ int runSequence(const Args& a) {
   checkOutputDirectory(a.out);
   o.estimator.motion_information = false;  // only the ROS odometry covariance uses it
   IncrementalEstimator est(seq.rig(), o.estimator);
+  const GroundAttitudeEstimator ground_attitude;
+  constexpr double kDeg = 180.0 / M_PI;
   GreyConverter conv(o.input);
   std::ofstream timing(a.out + "/timing.csv");
   timing << "frame,ms,pyramid_ms,prealign_ms,obstacle_ms,joint_ms,other_ms,evaluations\n";
   std::ofstream frames(a.out + "/frames.csv");
-  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,message\n";
+  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
   std::vector<double> tum_stamps, ms_all;
   std::vector<Eigen::Vector2d> xy;
@@ -335,13 +338,17 @@ int runSequence(const Args& a) {
     timing << i << "," << fr.time_ms << "," << fr.pyramid_ms << "," << fr.prealign_ms << "," << fr.obstacle_ms << ","
            << fr.joint_ms << "," << fr.time_ms - fr.pyramid_ms - fr.prealign_ms - fr.obstacle_ms - fr.joint_ms << ","
            << evaluations << "\n";
+    // The camera above the local ground (the fused map around it), for mapped frames.
+    const GroundAttitudeEstimate attitude =
+        good ? ground_attitude.estimate(est.map(), fr.ground_T_camera) : GroundAttitudeEstimate();
     std::string msg = fr.message;
     std::replace(msg.begin(), msg.end(), ',', ';');
     std::replace(msg.begin(), msg.end(), '\n', ' ');
     frames << i << "," << stamp << "," << status << "," << fr.time_ms << "," << fr.median_abs_residual_grey << ","
            << fr.fused_vertices << "," << fr.obstacle_pixels << "," << fr.photometric[0].gain << ","
            << fr.photometric[0].bias_grey << "," << fr.rectification.maxAbsPx(seq.rig(), 0.0) << ","
-           << fr.stereo_residual_grey << "," << fr.temporal_residual_grey << "," << fr.moving_pixels << "," << msg
+           << fr.stereo_residual_grey << "," << fr.temporal_residual_grey << "," << fr.moving_pixels << ","
+           << attitude.height_m << "," << attitude.pitch_rad * kDeg << "," << attitude.roll_rad * kDeg << "," << msg
            << "\n";
     if (!a.quiet) {
       const Eigen::Vector3d t = fr.camera0_T_camera.translation();

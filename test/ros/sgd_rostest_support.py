@@ -20,7 +20,7 @@ import rospy
 import roslib.packages
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import OccupancyGrid, Odometry
-from stereo_ground_dem.msg import HeightGrid
+from stereo_ground_dem.msg import GroundAttitude, HeightGrid
 
 PKG = 'stereo_ground_dem'
 
@@ -115,7 +115,7 @@ class Recorder(object):
 
     def __init__(self, ns='/stereo_ground_dem'):
         self.lock = threading.Lock()
-        self.dems, self.odoms, self.occupancy, self.diagnostics = [], [], [], []
+        self.dems, self.odoms, self.occupancy, self.diagnostics, self.attitudes = [], [], [], [], []
         self.subs = [
             rospy.Subscriber(ns + '/dem', HeightGrid, self._cb, callback_args=self.dems, queue_size=50,
                              buff_size=2 ** 26),
@@ -124,6 +124,8 @@ class Recorder(object):
                              queue_size=50, buff_size=2 ** 24),
             rospy.Subscriber('/diagnostics', DiagnosticArray, self._cb, callback_args=self.diagnostics,
                              queue_size=200),
+            rospy.Subscriber(ns + '/ground_attitude', GroundAttitude, self._cb, callback_args=self.attitudes,
+                             queue_size=50),
         ]
 
     def _cb(self, msg, store):

@@ -19,6 +19,9 @@ import sgd_rostest_support as sup  # noqa: E402
 
 NS = '/stereo_ground_dem'
 FRAMES = 10
+# Measured (frames 8 and 9, the valid ones): |height - 1.65| <= 0.3 mm, |pitch|, |roll| <= 0.0044 deg.
+ATTITUDE_HEIGHT_TOL_M = 0.001
+ATTITUDE_ANGLE_TOL_DEG = 0.01
 
 
 class SyntheticTest(unittest.TestCase):
@@ -76,6 +79,29 @@ class SyntheticTest(unittest.TestCase):
                       100 * max(errs) / length)
         self.assertEqual(len(self.rec.odoms), FRAMES)
         self.assertLess(max(errs), 0.01 * length, 'odometry within 1 % of the path')
+
+    def test_05_ground_attitude(self):
+        # One message per mapped frame, stamped like its images, in the camera frame; an estimate
+        # once 60 % of the 8 m disc around the camera is mapped (here from frame 8 of 10).
+        att = [m for _, m in self.rec.attitudes]
+        self.assertEqual([round(m.header.stamp.to_sec(), 6) for m in att],
+                         [round(s, 6) for _, s, _ in self.player.published])
+        self.assertEqual({m.header.frame_id for m in att}, {'left_camera_optical'}, 'the images\' frame')
+        valid = [m for m in att if m.valid]
+        self.assertFalse(att[0].valid, 'frame 0 knows only the ground ahead')
+        self.assertTrue(np.isnan(att[0].height))
+        for m in valid:
+            rospy.loginfo('ground attitude: height %.4f m, pitch %.4f deg, roll %.4f deg, %d vertices', m.height,
+                          np.degrees(m.pitch), np.degrees(m.roll), m.vertices)
+        # truth: level camera 1.65 m above the plane z = 0
+        self.assertGreaterEqual(len(valid), 2)
+        for m in valid:
+            self.assertLess(abs(m.height - 1.65), ATTITUDE_HEIGHT_TOL_M)
+            self.assertLess(abs(np.degrees(m.pitch)), ATTITUDE_ANGLE_TOL_DEG)
+            self.assertLess(abs(np.degrees(m.roll)), ATTITUDE_ANGLE_TOL_DEG)
+        keys = {v.key for _, st in self.rec.diagnostic_statuses() for v in st.values}
+        self.assertIn('camera above the local ground: height [m]', keys)
+        self.assertIn('camera mount', keys)
 
     def test_04_obstacle_is_lethal(self):
         _, occ = self.rec.occupancy[-1]

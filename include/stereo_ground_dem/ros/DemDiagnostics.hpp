@@ -11,11 +11,13 @@
 #include <ros/ros.h>
 
 #include <array>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
 
+#include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ros/InputMonitor.hpp"
 
@@ -33,6 +35,8 @@ class DemDiagnostics {
     size_t map_tiles = 0;
     double map_memory_mb = 0.0;
     std::string map_extent;
+    GroundAttitudeEstimate attitude;          ///< the camera above the local ground (mapped frames)
+    GroundAttitudeEstimate nominal_attitude;  ///< ... as mounted (nominal_* parameters)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -103,6 +107,11 @@ class DemDiagnostics {
   size_t map_tiles_ = 0;
   double map_memory_mb_ = 0.0;
   std::string map_extent_;
+  GroundAttitudeEstimator attitude_check_;
+  std::deque<GroundAttitudeEstimate> recent_attitudes_;  ///< the last kMountWindow mapped frames
+  GroundAttitudeEstimate last_attitude_;
+  std::string mount_warning_;                           ///< "" while the camera sits as mounted
+  static constexpr size_t kMountWindow = 30;
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_, input_timer_;

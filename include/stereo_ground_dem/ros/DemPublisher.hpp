@@ -1,8 +1,8 @@
 #pragma once
 /// \file DemPublisher.hpp
 /// The outputs of stereo_ground_dem/DemNodelet (docs/ros.md, "Topics" and "Frames and tf"): the
-/// local and global HeightGrid and OccupancyGrid, the mesh, odometry with covariance, the path and
-/// tf odom -> base_link (through the static base_link -> camera transform, REP 105).
+/// local and global HeightGrid and OccupancyGrid, the mesh, odometry with covariance, the path, the
+/// camera's attitude above the local ground and tf odom -> base_link (through the static base_link -> camera transform, REP 105).
 ///
 /// Threads: publish() and reset() run on the processing thread only (they own the trajectory,
 /// covariance and tf state); anySubscriber() and setTraversability() may be called from any thread.
@@ -20,6 +20,7 @@
 #include <string>
 
 #include "stereo_ground_dem/ElevationMap.hpp"
+#include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ros/MapWindowSampler.hpp"
 #include "stereo_ground_dem/ros/MotionCovariance.hpp"
@@ -48,6 +49,8 @@ class DemPublisher {
   /// of the map's known extent (for diagnostics).
   std::string publish(const FrameResult& frame, const ElevationMap& map, const ros::Time& stamp,
                       const std::string& camera_frame);
+  /// The camera above the local ground (~ground_attitude) of one mapped frame.
+  void publishAttitude(const GroundAttitudeEstimate& attitude, const ros::Time& stamp, const std::string& camera_frame);
   /// Forgets the trajectory, the covariance and the cached camera mount (a new map).
   void reset();
   /// Unregisters every output and the tf listener; waits for a publish() in progress, after which
@@ -65,7 +68,8 @@ class DemPublisher {
   const std::string logger_;
   std::mutex publish_mutex_;  ///< held by publish() and shutdown()
   bool shut_down_ = false;
-  ros::Publisher pub_dem_, pub_dem_global_, pub_occupancy_, pub_occupancy_global_, pub_mesh_, pub_odom_, pub_path_;
+  ros::Publisher pub_dem_, pub_dem_global_, pub_occupancy_, pub_occupancy_global_, pub_mesh_, pub_odom_, pub_path_,
+      pub_attitude_;
   std::shared_ptr<tf2_ros::Buffer> tf_buffer_;
   std::shared_ptr<tf2_ros::TransformListener> tf_listener_;
   std::shared_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;

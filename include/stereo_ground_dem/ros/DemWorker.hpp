@@ -18,6 +18,7 @@
 #include <string>
 #include <thread>
 
+#include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ros/DemDiagnostics.hpp"
 #include "stereo_ground_dem/ros/DemPublisher.hpp"
@@ -73,6 +74,7 @@ class DemWorker {
   // processing thread only
   std::unique_ptr<IncrementalEstimator> estimator_;
   std::vector<Eigen::Vector2d> trajectory_xy_;
+  GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   double last_processed_stamp_s_ = -1.0;
 };

@@ -1,0 +1,153 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
+#include "stereo_ground_dem/StereoEstimator.hpp"
+
+namespace sgd = stereo_ground_dem;
+
+namespace {
+
+/// A camera (x right, y down, z forward) whose body frame (forward, left, up) sits on the plane
+/// z = a x + b y + c at `height_m` above the plane point below (x, y), heading `yaw` within the
+/// plane, then pitched and rolled relative to it (Z-Y-X Euler, REP 103 signs).
+Eigen::Isometry3d cameraOnPlane(const Eigen::Vector3d& abc, double x, double y, double yaw, double height_m,
+                                double pitch, double roll) {
+  const Eigen::Vector3d n = Eigen::Vector3d(-abc.x(), -abc.y(), 1.0).normalized();
+  const Eigen::Vector3d heading(std::cos(yaw), std::sin(yaw), 0.0);
+  const Eigen::Vector3d f0 = (heading - heading.dot(n) * n).normalized();
+  Eigen::Matrix3d plane;
+  plane << f0, n.cross(f0), n;
+  const Eigen::Matrix3d body = plane * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+                               Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  Eigen::Isometry3d g_t_c = Eigen::Isometry3d::Identity();
+  g_t_c.linear() << -body.col(1), -body.col(2), body.col(0);  // camera x = -left, y = -up, z = forward
+  g_t_c.translation() = Eigen::Vector3d(x, y, abc.x() * x + abc.y() * y + abc.z()) + height_m * n;
+  return g_t_c;
+}
+
+}  // namespace
+
+TEST(GroundAttitude, HeightPitchRollRelativeToATiltedPlane) {
+  const Eigen::Vector3d abc(0.12, -0.07, 0.4);  // 6.8 % and 4 % grades
+  for (const double yaw : {0.0, 0.7, -2.5}) {
+    const Eigen::Isometry3d c = cameraOnPlane(abc, 3.0, -1.0, yaw, 1.65, 0.05, -0.03);
+    const sgd::GroundAttitudeEstimate e = sgd::GroundAttitudeEstimator::relativeToPlane(abc, c);
+    ASSERT_TRUE(e.valid);
+    EXPECT_NEAR(e.height_m, 1.65, 1e-12) << yaw;
+    EXPECT_NEAR(e.pitch_rad, 0.05, 1e-12) << yaw;
+    EXPECT_NEAR(e.roll_rad, -0.03, 1e-12) << yaw;
+    EXPECT_NEAR(e.slope_rad, std::acos(1.0 / std::sqrt(1.0 + 0.12 * 0.12 + 0.07 * 0.07)), 1e-12);
+  }
+  // A level camera on level ground, looking down 3 deg with its left side 2 deg up.
+  const Eigen::Isometry3d level = cameraOnPlane(Eigen::Vector3d::Zero(), 0, 0, 0.3, 1.2, 0.0524, 0.0349);
+  const sgd::GroundAttitudeEstimate e = sgd::GroundAttitudeEstimator::relativeToPlane(Eigen::Vector3d::Zero(), level);
+  EXPECT_NEAR(e.height_m, 1.2, 1e-12);
+  EXPECT_NEAR(level.translation().z(), 1.2, 1e-12);
+  EXPECT_NEAR(e.pitch_rad, 0.0524, 1e-12);
+  EXPECT_NEAR(e.roll_rad, 0.0349, 1e-12);
+  EXPECT_LT((level.linear() * Eigen::Vector3d::UnitZ()).z(), -0.05) << "pitch > 0 looks down";
+}
+
+TEST(GroundAttitude, PlaneFromTheMapIgnoresCurbsObstaclesAndFarGround) {
+  const Eigen::Vector3d abc(-0.05, 0.03, 0.2);
+  sgd::ElevationMap map;
+  const sgd::GroundGrid w = sgd::GroundGrid::covering(-30.0, 30.0, -30.0, 30.0, 0.5);
+  Eigen::VectorXd z(w.vertexCount());
+  std::vector<uint8_t> update(static_cast<size_t>(w.vertexCount()), 1), hit(update.size(), 0), ground(update.size(), 1);
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    const Eigen::Vector2d p = w.position(v);
+    z[v] = abc.x() * p.x() + abc.y() * p.y() + abc.z();
+    if (p.y() > 3.0 && p.y() < 3.6) z[v] += 0.15 + 0.05;  // a curb 20 cm high on the left
+    if (p.x() > 4.0 && p.x() < 6.0 && p.y() < -2.0 && p.y() > -4.0) {  // a car: its roof, flagged
+      z[v] += 1.5;
+      hit[static_cast<size_t>(v)] = 1;
+      ground[static_cast<size_t>(v)] = 0;
+    }
+    if (std::hypot(p.x(), p.y()) > 9.0) z[v] += 3.0;  // beyond the radius: a hill that must not count
+  }
+  map.fuse(w, z, Eigen::VectorXd::Zero(w.vertexCount()), Eigen::VectorXd::Constant(w.vertexCount(), 100.0), update, 0);
+  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Zero(w.vertexCount()), 0);
+  const Eigen::Isometry3d c = cameraOnPlane(abc, 0.2, -0.1, 0.4, 1.5, 0.08, 0.02);
+  const sgd::GroundAttitudeEstimate e = sgd::GroundAttitudeEstimator().estimate(map, c);
+  ASSERT_TRUE(e.valid);
+  EXPECT_NEAR(e.height_m, 1.5, 1e-4);
+  EXPECT_NEAR(e.pitch_rad, 0.08, 1e-5);
+  EXPECT_NEAR(e.roll_rad, 0.02, 1e-5);
+  EXPECT_LT(e.rms_m, 1e-5);
+  // The 8 m disc holds ~804 vertices (pi 8^2 / 0.25); the curb's two rows and the car are out.
+  EXPECT_GT(e.vertices, 700);
+  EXPECT_LT(e.vertices, 790);
+
+  // Only the ground 4-8 m ahead known (the first frame): too little of the disc, no estimate.
+  sgd::ElevationMap ahead;
+  Eigen::VectorXd z_ahead = z;
+  std::vector<uint8_t> ahead_only(update.size(), 0);
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    const Eigen::Vector2d p = w.position(v);
+    ahead_only[static_cast<size_t>(v)] = p.x() > 4.0 && p.x() < 8.0;
+  }
+  ahead.fuse(w, z_ahead, Eigen::VectorXd::Zero(w.vertexCount()), Eigen::VectorXd::Constant(w.vertexCount(), 100.0),
+             ahead_only, 0);
+  EXPECT_FALSE(sgd::GroundAttitudeEstimator().estimate(ahead, cameraOnPlane(abc, 0.0, 0.0, 0.0, 1.5, 0.0, 0.0)).valid);
+
+  // Where the map knows nothing: no estimate, NaN values.
+  const Eigen::Isometry3d away = cameraOnPlane(abc, 100.0, 100.0, 0.0, 1.5, 0.0, 0.0);
+  const sgd::GroundAttitudeEstimate none = sgd::GroundAttitudeEstimator().estimate(map, away);
+  EXPECT_FALSE(none.valid);
+  EXPECT_TRUE(std::isnan(none.height_m) && std::isnan(none.pitch_rad) && std::isnan(none.roll_rad));
+  EXPECT_EQ(none.vertices, 0);
+}
+
+TEST(GroundAttitude, OptionsAreValidated) {
+  sgd::GroundAttitudeOptions o;
+  o.radius_m = 0.0;
+  EXPECT_THROW(sgd::GroundAttitudeEstimator{o}, std::invalid_argument);
+  o = sgd::GroundAttitudeOptions();
+  o.min_coverage = 0.0;
+  EXPECT_THROW(sgd::GroundAttitudeEstimator{o}, std::invalid_argument);
+  o = sgd::GroundAttitudeOptions();
+  o.outlier_m = std::nan("");
+  EXPECT_THROW(sgd::GroundAttitudeEstimator{o}, std::invalid_argument);
+}
+
+// The nominal mount parameters (nominal_height_m, nominal_pitch_down_rad, nominal_roll_rad) read
+// back as the attitude above level ground: one sign convention for both.
+TEST(GroundAttitude, NominalMountReadsBackAndDriftWarns) {
+  const Eigen::Isometry3d nominal_pose = sgd::StereoEstimator::nominalCameraPose(1.65, 0.03, -0.01).inverse();
+  const sgd::GroundAttitudeEstimate nominal = sgd::GroundAttitudeEstimator::relativeToPlane(Eigen::Vector3d::Zero(), nominal_pose);
+  EXPECT_NEAR(nominal.height_m, 1.65, 1e-12);
+  EXPECT_NEAR(nominal.pitch_rad, 0.03, 1e-12);
+  EXPECT_NEAR(nominal.roll_rad, -0.01, 1e-12);
+
+  const sgd::GroundAttitudeEstimator ga;
+  std::vector<sgd::GroundAttitudeEstimate> recent;
+  auto add = [&](double h, double p, double r) {
+    sgd::GroundAttitudeEstimate e;
+    e.valid = true;
+    e.height_m = h;
+    e.pitch_rad = p;
+    e.roll_rad = r;
+    recent.push_back(e);
+  };
+  for (int i = 0; i < 19; ++i) add(1.65 + 0.01 * (i % 3), 0.03 + 0.01 * (i % 2), -0.01);
+  EXPECT_EQ(ga.mountWarning(recent, nominal), "") << "19 estimates: too few to judge";
+  add(1.64, 0.03, -0.01);
+  recent.push_back(sgd::GroundAttitudeEstimate());  // invalid ones do not count
+  EXPECT_EQ(ga.mountWarning(recent, nominal), "");
+  // Bumps: a third of the frames far off, the medians stay.
+  for (int i = 0; i < 9; ++i) add(1.2, 0.3, 0.2);
+  EXPECT_EQ(ga.mountWarning(recent, nominal), "");
+  // The mount tilted down by 4 deg.
+  recent.clear();
+  for (int i = 0; i < 20; ++i) add(1.63, 0.03 + 0.07, -0.01);
+  const std::string w = ga.mountWarning(recent, nominal);
+  EXPECT_NE(w.find("pitch 5.7 deg"), std::string::npos) << w;
+  EXPECT_NE(w.find("nominal 1.65 m, 1.7 deg, -0.6 deg"), std::string::npos) << w;
+  EXPECT_EQ(w.find('\n'), std::string::npos);
+  // Sitting 25 cm lower.
+  recent.clear();
+  for (int i = 0; i < 20; ++i) add(1.40, 0.03, -0.01);
+  EXPECT_NE(ga.mountWarning(recent, nominal).find("height 1.40 m"), std::string::npos);
+}
