@@ -59,9 +59,11 @@ TEST(GroundAttitude, PlaneFromTheMapIgnoresCurbsObstaclesAndFarGround) {
   for (int v = 0; v < w.vertexCount(); ++v) {
     const Eigen::Vector2d p = w.position(v);
     z[v] = abc.x() * p.x() + abc.y() * p.y() + abc.z();
-    if (p.y() > 3.0 && p.y() < 3.6) z[v] += 0.15 + 0.05;  // a curb 20 cm high on the left
-    if (p.x() > 4.0 && p.x() < 6.0 && p.y() < -2.0 && p.y() > -4.0) {  // a car: its roof, flagged
-      z[v] += 1.5;
+    if (p.y() > 3.0 && p.y() < 3.6) z[v] += 0.2;  // a curb 20 cm high on the left (the row y = 3.5)
+    // Something flagged as an obstacle only 10 cm up: within outlier_m, so only the obstacle
+    // layer keeps it out of the fit (it would bias the plane by ~2 mm).
+    if (p.x() > 4.0 && p.x() < 6.0 && p.y() < -2.0 && p.y() > -4.0) {
+      z[v] += 0.1;
       hit[static_cast<size_t>(v)] = 1;
       ground[static_cast<size_t>(v)] = 0;
     }
@@ -76,7 +78,7 @@ TEST(GroundAttitude, PlaneFromTheMapIgnoresCurbsObstaclesAndFarGround) {
   EXPECT_NEAR(e.pitch_rad, 0.08, 1e-5);
   EXPECT_NEAR(e.roll_rad, 0.02, 1e-5);
   EXPECT_LT(e.rms_m, 1e-5);
-  // The 8 m disc holds ~804 vertices (pi 8^2 / 0.25); the curb's two rows and the car are out.
+  // The 8 m disc holds ~804 vertices (pi 8^2 / 0.25); the curb's row and the obstacle are out.
   EXPECT_GT(e.vertices, 700);
   EXPECT_LT(e.vertices, 790);
 
@@ -91,6 +93,24 @@ TEST(GroundAttitude, PlaneFromTheMapIgnoresCurbsObstaclesAndFarGround) {
   ahead.fuse(w, z_ahead, Eigen::VectorXd::Zero(w.vertexCount()), Eigen::VectorXd::Constant(w.vertexCount(), 100.0),
              ahead_only, 0);
   EXPECT_FALSE(sgd::GroundAttitudeEstimator().estimate(ahead, cameraOnPlane(abc, 0.0, 0.0, 0.0, 1.5, 0.0, 0.0)).valid);
+
+  // As exact far from the map's origin (the fit is centred on the nadir).
+  {
+    sgd::ElevationMap far_map;
+    const sgd::GroundGrid wf = sgd::GroundGrid::covering(4990.0, 5010.0, -3010.0, -2990.0, 0.5);
+    Eigen::VectorXd zf(wf.vertexCount());
+    for (int v = 0; v < wf.vertexCount(); ++v) {
+      zf[v] = abc.x() * wf.position(v).x() + abc.y() * wf.position(v).y() + abc.z();
+    }
+    far_map.fuse(wf, zf, Eigen::VectorXd::Zero(wf.vertexCount()), Eigen::VectorXd::Constant(wf.vertexCount(), 100.0),
+                 std::vector<uint8_t>(static_cast<size_t>(wf.vertexCount()), 1), 0);
+    const sgd::GroundAttitudeEstimate f =
+        sgd::GroundAttitudeEstimator().estimate(far_map, cameraOnPlane(abc, 5000.0, -3000.0, 1.0, 1.5, 0.08, 0.02));
+    ASSERT_TRUE(f.valid) << "5.8 km from the origin";
+    EXPECT_NEAR(f.height_m, 1.5, 1e-4);
+    EXPECT_NEAR(f.pitch_rad, 0.08, 1e-5);
+    EXPECT_NEAR(f.roll_rad, 0.02, 1e-5);
+  }
 
   // Where the map knows nothing: no estimate, NaN values.
   const Eigen::Isometry3d away = cameraOnPlane(abc, 100.0, 100.0, 0.0, 1.5, 0.0, 0.0);
@@ -110,44 +130,62 @@ TEST(GroundAttitude, OptionsAreValidated) {
   o = sgd::GroundAttitudeOptions();
   o.outlier_m = std::nan("");
   EXPECT_THROW(sgd::GroundAttitudeEstimator{o}, std::invalid_argument);
+  o = sgd::GroundAttitudeOptions();
+  o.radius_m = 500.0;
+  EXPECT_THROW(sgd::GroundAttitudeEstimator{o}, std::invalid_argument);
+  o = sgd::GroundAttitudeOptions();
+  o.mount_min_estimates = o.mount_window_frames + 1;
+  EXPECT_THROW(sgd::GroundAttitudeEstimator{o}, std::invalid_argument);
 }
 
 // The nominal mount parameters (nominal_height_m, nominal_pitch_down_rad, nominal_roll_rad) read
 // back as the attitude above level ground: one sign convention for both.
-TEST(GroundAttitude, NominalMountReadsBackAndDriftWarns) {
+TEST(GroundAttitude, NominalMountReadsBack) {
   const Eigen::Isometry3d nominal_pose = sgd::StereoEstimator::nominalCameraPose(1.65, 0.03, -0.01).inverse();
   const sgd::GroundAttitudeEstimate nominal = sgd::GroundAttitudeEstimator::relativeToPlane(Eigen::Vector3d::Zero(), nominal_pose);
   EXPECT_NEAR(nominal.height_m, 1.65, 1e-12);
   EXPECT_NEAR(nominal.pitch_rad, 0.03, 1e-12);
   EXPECT_NEAR(nominal.roll_rad, -0.01, 1e-12);
+}
 
+// The mount check: the typical attitude of recent frames against the one at the start of the map.
+TEST(GroundAttitude, MountThatMovedWarnsBumpsDoNot) {
   const sgd::GroundAttitudeEstimator ga;
-  std::vector<sgd::GroundAttitudeEstimate> recent;
-  auto add = [&](double h, double p, double r) {
+  auto make = [](double h, double p, double r) {
     sgd::GroundAttitudeEstimate e;
     e.valid = true;
     e.height_m = h;
     e.pitch_rad = p;
     e.roll_rad = r;
-    recent.push_back(e);
+    return e;
   };
-  for (int i = 0; i < 19; ++i) add(1.65 + 0.01 * (i % 3), 0.03 + 0.01 * (i % 2), -0.01);
-  EXPECT_EQ(ga.mountWarning(recent, nominal), "") << "19 estimates: too few to judge";
-  add(1.64, 0.03, -0.01);
-  recent.push_back(sgd::GroundAttitudeEstimate());  // invalid ones do not count
-  EXPECT_EQ(ga.mountWarning(recent, nominal), "");
+  std::vector<sgd::GroundAttitudeEstimate> start;
+  for (int i = 0; i < 19; ++i) start.push_back(make(1.65 + 0.01 * (i % 3), 0.03 + 0.01 * (i % 2), -0.01));
+  start.push_back(sgd::GroundAttitudeEstimate());  // invalid ones do not count
+  EXPECT_FALSE(ga.typical(start).valid) << "19 valid estimates: too few";
+  start.push_back(make(1.64, 0.03, -0.01));
+  const sgd::GroundAttitudeEstimate reference = ga.typical(start);
+  ASSERT_TRUE(reference.valid);
+  EXPECT_NEAR(reference.height_m, 1.66, 1e-12);  // medians: heights 1.64, 1.65 x 7, 1.66 x 6, 1.67 x 6
+  EXPECT_NEAR(reference.pitch_rad, 0.03, 1e-12);  // 0.03 x 11, 0.04 x 9
+  EXPECT_NEAR(reference.roll_rad, -0.01, 1e-12);
+  EXPECT_EQ(ga.mountWarning(start, reference), "");
+  EXPECT_EQ(ga.mountWarning(start, sgd::GroundAttitudeEstimate()), "") << "no reference yet";
   // Bumps: a third of the frames far off, the medians stay.
-  for (int i = 0; i < 9; ++i) add(1.2, 0.3, 0.2);
-  EXPECT_EQ(ga.mountWarning(recent, nominal), "");
+  std::vector<sgd::GroundAttitudeEstimate> bumpy = start;
+  for (int i = 0; i < 9; ++i) bumpy.push_back(make(1.2, 0.3, 0.2));
+  EXPECT_EQ(ga.mountWarning(bumpy, reference), "");
   // The mount tilted down by 4 deg.
-  recent.clear();
-  for (int i = 0; i < 20; ++i) add(1.63, 0.03 + 0.07, -0.01);
-  const std::string w = ga.mountWarning(recent, nominal);
-  EXPECT_NE(w.find("pitch 5.7 deg"), std::string::npos) << w;
-  EXPECT_NE(w.find("nominal 1.65 m, 1.7 deg, -0.6 deg"), std::string::npos) << w;
+  std::vector<sgd::GroundAttitudeEstimate> tilted(20, make(1.64, 0.03 + 0.07, -0.01));
+  const std::string w = ga.mountWarning(tilted, reference);
+  EXPECT_NE(w.find("median of the last 20 frames: height 1.64 m, pitch 5.7 deg, roll -0.6 deg"), std::string::npos) << w;
+  EXPECT_NE(w.find("at the start 1.66 m, 1.7 deg, -0.6 deg"), std::string::npos) << w;
   EXPECT_EQ(w.find('\n'), std::string::npos);
-  // Sitting 25 cm lower.
-  recent.clear();
-  for (int i = 0; i < 20; ++i) add(1.40, 0.03, -0.01);
-  EXPECT_NE(ga.mountWarning(recent, nominal).find("height 1.40 m"), std::string::npos);
+  // 2.5 deg: within the 2.9 deg tolerance.
+  EXPECT_EQ(ga.mountWarning(std::vector<sgd::GroundAttitudeEstimate>(20, make(1.66, 0.03 + 0.044, -0.01)), reference), "");
+  // Sitting 25 cm lower; rolled by 3.4 deg.
+  EXPECT_NE(ga.mountWarning(std::vector<sgd::GroundAttitudeEstimate>(20, make(1.41, 0.03, -0.01)), reference)
+                .find("height 1.41 m"),
+            std::string::npos);
+  EXPECT_NE(ga.mountWarning(std::vector<sgd::GroundAttitudeEstimate>(20, make(1.66, 0.03, 0.05)), reference), "");
 }

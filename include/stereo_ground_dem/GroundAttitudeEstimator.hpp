@@ -20,15 +20,17 @@
 namespace stereo_ground_dem {
 
 struct GroundAttitudeOptions {
-  double radius_m = 8.0;      ///< map vertices within this horizontal distance of the nadir [m]
+  double radius_m = 8.0;      ///< map vertices within this horizontal distance of the nadir [m] (<= 100)
   /// Fewer of the disc's vertices known: no estimate. The ground ahead alone (the first frames)
   /// says little about the ground under the vehicle (on a crest, 1 deg off).
   double min_coverage = 0.6;
   double outlier_m = 0.15;    ///< vertices farther from the first plane are left out of the second fit [m]
-  /// mountWarning(): the median of the last estimates may differ this much from the nominal mount.
+  /// mountWarning(): the typical attitude of the last mount_window_frames mapped frames may differ
+  /// this much from the one at the start of the map.
   double mount_height_tolerance_m = 0.2;
   double mount_angle_tolerance_rad = 0.05;  ///< (2.9 deg) pitch and roll
-  int mount_min_estimates = 20;             ///< fewer estimates: no judgement
+  int mount_window_frames = 30;             ///< frames whose medians are compared
+  int mount_min_estimates = 20;             ///< fewer valid estimates in a window: no judgement
 
   bool isValid(std::string* why) const;
 };
@@ -55,11 +57,16 @@ class GroundAttitudeEstimator {
   /// The attitude of a camera above the plane z = a x + b y + c of G (the geometry alone).
   static GroundAttitudeEstimate relativeToPlane(const Eigen::Vector3d& abc, const Eigen::Isometry3d& ground_T_camera);
 
-  /// "" when the camera sits on the ground as mounted, else one line saying what moved: the
-  /// medians of the valid estimates in `recent` against `nominal` (height, pitch and roll of the
-  /// nominal mount, e.g. from StereoEstimator::nominalCameraPose). A single frame over a bump
-  /// is no warning; a mount that slipped, or an estimate that drifts, is.
-  std::string mountWarning(const std::vector<GroundAttitudeEstimate>& recent, const GroundAttitudeEstimate& nominal) const;
+  /// The medians (height, pitch, roll) of the valid estimates; valid when there are at least
+  /// mount_min_estimates of them. One frame over a bump does not move it.
+  GroundAttitudeEstimate typical(const std::vector<GroundAttitudeEstimate>& estimates) const;
+
+  /// "" when the camera sits on the ground as it did at `reference` (typical() of the first
+  /// frames of the map), else one line saying what moved: a mount that slipped, or an estimate
+  /// that drifts. Also "" while either is not known.
+  std::string mountWarning(const std::vector<GroundAttitudeEstimate>& recent, const GroundAttitudeEstimate& reference) const;
+
+  const GroundAttitudeOptions& options() const { return options_; }
 
  private:
   GroundAttitudeOptions options_;

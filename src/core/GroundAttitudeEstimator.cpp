@@ -42,13 +42,15 @@ bool GroundAttitudeOptions::isValid(std::string* why) const {
     if (why) *why = w;
     return false;
   };
-  if (!(radius_m > 0.0 && radius_m < 1e4)) return bad("radius_m must be in (0, 1e4)");
+  if (!(radius_m > 0.0 && radius_m <= 100.0)) return bad("radius_m must be in (0, 100]");
   if (!(min_coverage > 0.0 && min_coverage <= 1.0)) return bad("min_coverage must be in (0, 1]");
   if (!(outlier_m > 0.0)) return bad("outlier_m must be > 0");
   if (!(mount_height_tolerance_m > 0.0) || !(mount_angle_tolerance_rad > 0.0)) {
     return bad("mount_height_tolerance_m and mount_angle_tolerance_rad must be > 0");
   }
-  if (mount_min_estimates < 1) return bad("mount_min_estimates must be >= 1");
+  if (mount_min_estimates < 1 || mount_min_estimates > mount_window_frames) {
+    return bad("mount_min_estimates must be in 1..mount_window_frames");
+  }
   return true;
 }
 
@@ -89,7 +91,7 @@ GroundAttitudeEstimate GroundAttitudeEstimator::estimate(const ElevationMap& map
       ++disc;
       const float h = z.at<float>(row, col);
       if (!std::isfinite(h) || obstacle.at<float>(row, col) > 0.5f) continue;  // unknown or under an obstacle
-      pts.emplace_back(x, y, h);
+      pts.emplace_back(x - c.x(), y - c.y(), h);  // centred on the nadir: the fit is as good 5 km out
     }
   }
   const int min_points = std::max(3, static_cast<int>(std::ceil(options_.min_coverage * disc)));
@@ -102,7 +104,9 @@ GroundAttitudeEstimate GroundAttitudeEstimator::estimate(const ElevationMap& map
     use[i] = std::abs(pts[i].z() - (abc.x() * pts[i].x() + abc.y() * pts[i].y() + abc.z())) <= options_.outlier_m;
   }
   if (!fitPlane(pts, use, std::max(3, static_cast<int>(pts.size() / 2)), &abc)) return none;
-  GroundAttitudeEstimate e = relativeToPlane(abc, ground_T_camera);
+  // Back to G: z = a (x - cx) + b (y - cy) + c'.
+  const Eigen::Vector3d abc_g(abc.x(), abc.y(), abc.z() - abc.x() * c.x() - abc.y() * c.y());
+  GroundAttitudeEstimate e = relativeToPlane(abc_g, ground_T_camera);
   double ss = 0.0;
   e.vertices = 0;
   for (size_t i = 0; i < pts.size(); ++i) {
@@ -115,34 +119,46 @@ GroundAttitudeEstimate GroundAttitudeEstimator::estimate(const ElevationMap& map
   return e;
 }
 
-std::string GroundAttitudeEstimator::mountWarning(const std::vector<GroundAttitudeEstimate>& recent,
-                                         const GroundAttitudeEstimate& nominal) const {
+GroundAttitudeEstimate GroundAttitudeEstimator::typical(const std::vector<GroundAttitudeEstimate>& estimates) const {
   std::vector<double> h, p, r;
-  for (const auto& e : recent) {
+  for (const auto& e : estimates) {
     if (!e.valid) continue;
     h.push_back(e.height_m);
     p.push_back(e.pitch_rad);
     r.push_back(e.roll_rad);
   }
-  if (static_cast<int>(h.size()) < options_.mount_min_estimates) return "";
+  GroundAttitudeEstimate t;
+  if (static_cast<int>(h.size()) < options_.mount_min_estimates) return t;
   auto median = [](std::vector<double> v) {
     std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
     return v[v.size() / 2];
   };
-  const double mh = median(h), mp = median(p), mr = median(r);
+  t.valid = true;
+  t.height_m = median(h);
+  t.pitch_rad = median(p);
+  t.roll_rad = median(r);
+  return t;
+}
+
+std::string GroundAttitudeEstimator::mountWarning(const std::vector<GroundAttitudeEstimate>& recent,
+                                                  const GroundAttitudeEstimate& reference) const {
+  const GroundAttitudeEstimate now = typical(recent);
+  if (!now.valid || !reference.valid) return "";
+  if (std::abs(now.height_m - reference.height_m) <= options_.mount_height_tolerance_m &&
+      std::abs(now.pitch_rad - reference.pitch_rad) <= options_.mount_angle_tolerance_rad &&
+      std::abs(now.roll_rad - reference.roll_rad) <= options_.mount_angle_tolerance_rad) {
+    return "";
+  }
+  const long used = std::count_if(recent.begin(), recent.end(), [](const GroundAttitudeEstimate& e) { return e.valid; });
   constexpr double kDeg = 180.0 / M_PI;
   char buf[320];
-  if (std::abs(mh - nominal.height_m) > options_.mount_height_tolerance_m ||
-      std::abs(mp - nominal.pitch_rad) > options_.mount_angle_tolerance_rad ||
-      std::abs(mr - nominal.roll_rad) > options_.mount_angle_tolerance_rad) {
-    std::snprintf(buf, sizeof(buf),
-                  "the camera sits on the ground unlike its nominal mount (median of the last %zu frames: height "
-                  "%.2f m, pitch %.1f deg, roll %.1f deg; nominal %.2f m, %.1f deg, %.1f deg): a moved mount, wrong "
-                  "nominal_* parameters, or a drifting estimate",
-                  h.size(), mh, mp * kDeg, mr * kDeg, nominal.height_m, nominal.pitch_rad * kDeg, nominal.roll_rad * kDeg);
-    return buf;
-  }
-  return "";
+  std::snprintf(buf, sizeof(buf),
+                "the camera sits on the ground unlike at the start of the map (median of the last %ld frames: height "
+                "%.2f m, pitch %.1f deg, roll %.1f deg; at the start %.2f m, %.1f deg, %.1f deg): a mount that moved, "
+                "or a drifting estimate",
+                used, now.height_m, now.pitch_rad * kDeg, now.roll_rad * kDeg, reference.height_m,
+                reference.pitch_rad * kDeg, reference.roll_rad * kDeg);
+  return buf;
 }
 
 }  // namespace stereo_ground_dem

@@ -79,6 +79,7 @@ void DemDiagnostics::restarted(const std::string& why, bool warning) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++counts_.restarts;
   recent_attitudes_.clear();
+  first_attitude_ = GroundAttitudeEstimate();
   last_attitude_ = GroundAttitudeEstimate();
   mount_warning_.clear();
   if (warning) {
@@ -112,9 +113,11 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   if (r.status != FrameStatus::kFailed) {
     last_attitude_ = r.attitude;
     recent_attitudes_.push_back(r.attitude);
-    if (recent_attitudes_.size() > kMountWindow) recent_attitudes_.pop_front();
-    const std::string w = attitude_check_.mountWarning({recent_attitudes_.begin(), recent_attitudes_.end()},
-                                                       r.nominal_attitude);
+    const size_t window = static_cast<size_t>(attitude_check_.options().mount_window_frames);
+    if (recent_attitudes_.size() > window) recent_attitudes_.pop_front();
+    const std::vector<GroundAttitudeEstimate> recent(recent_attitudes_.begin(), recent_attitudes_.end());
+    if (!first_attitude_.valid && recent.size() == window) first_attitude_ = attitude_check_.typical(recent);
+    const std::string w = attitude_check_.mountWarning(recent, first_attitude_);
     if (!w.empty() && w != mount_warning_) ROS_WARN_STREAM_NAMED(logger_, w);  // once per change, not per frame
     mount_warning_ = w;
   }
@@ -207,7 +210,8 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("camera above the local ground: height [m]", last_attitude_.height_m);
   stat.add("camera above the local ground: pitch [deg]", last_attitude_.pitch_rad * kDeg);
   stat.add("camera above the local ground: roll [deg]", last_attitude_.roll_rad * kDeg);
-  stat.add("camera mount", mount_warning_.empty() ? std::string("as nominal (or not yet known)") : mount_warning_);
+  stat.add("camera mount", mount_warning_.empty() ? std::string("as at the start of the map (or not yet known)")
+                                                   : mount_warning_);
   stat.add("last problem", last_problem_);
   stat.add("last problem age [s]", problem_age);
 }

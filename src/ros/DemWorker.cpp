@@ -176,11 +176,11 @@ void DemWorker::process(StereoFrame& f) {
     trajectory_xy_.push_back(fr.ground_T_camera.translation().head<2>());
     record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame);
     if (fr.status != FrameStatus::kFailed) {  // a failed frame's pose is only the prediction
-      const StereoEstimatorOptions& so = estimator_->options().stereo;
-      record.attitude = attitude_.estimate(map, fr.ground_T_camera);
-      record.nominal_attitude = GroundAttitudeEstimator::relativeToPlane(
-          Eigen::Vector3d::Zero(),
-          StereoEstimator::nominalCameraPose(so.nominal_height_m, so.nominal_pitch_down_rad, so.nominal_roll_rad).inverse());
+      try {
+        record.attitude = attitude_.estimate(map, fr.ground_T_camera);
+      } catch (const std::exception& e) {  // never expected (the window is tiny); never fatal either
+        diagnostics_.problem(std::string("ground attitude: ") + e.what(), false);
+      }
       publisher_.publishAttitude(record.attitude, f.stamp, f.camera_frame);
     }
     if (fr.status != FrameStatus::kFailed) ++fused_frames_;

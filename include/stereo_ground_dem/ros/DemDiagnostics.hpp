@@ -35,8 +35,7 @@ class DemDiagnostics {
     size_t map_tiles = 0;
     double map_memory_mb = 0.0;
     std::string map_extent;
-    GroundAttitudeEstimate attitude;          ///< the camera above the local ground (mapped frames)
-    GroundAttitudeEstimate nominal_attitude;  ///< ... as mounted (nominal_* parameters)
+    GroundAttitudeEstimate attitude;  ///< the camera above the local ground (mapped frames)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -108,10 +107,10 @@ class DemDiagnostics {
   double map_memory_mb_ = 0.0;
   std::string map_extent_;
   GroundAttitudeEstimator attitude_check_;
-  std::deque<GroundAttitudeEstimate> recent_attitudes_;  ///< the last kMountWindow mapped frames
+  std::deque<GroundAttitudeEstimate> recent_attitudes_;  ///< the last mount_window_frames mapped frames
+  GroundAttitudeEstimate first_attitude_;                ///< typical of the map's first full window
   GroundAttitudeEstimate last_attitude_;
-  std::string mount_warning_;                           ///< "" while the camera sits as mounted
-  static constexpr size_t kMountWindow = 30;
+  std::string mount_warning_;                            ///< "" while the camera sits as at the start
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_, input_timer_;

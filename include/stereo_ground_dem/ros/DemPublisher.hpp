@@ -4,7 +4,7 @@
 /// local and global HeightGrid and OccupancyGrid, the mesh, odometry with covariance, the path, the
 /// camera's attitude above the local ground and tf odom -> base_link (through the static base_link -> camera transform, REP 105).
 ///
-/// Threads: publish() and reset() run on the processing thread only (they own the trajectory,
+/// Threads: publish(), publishAttitude() and reset() run on the processing thread only (they own the trajectory,
 /// covariance and tf state); anySubscriber() and setTraversability() may be called from any thread.
 
 #include <nav_msgs/Path.h>
