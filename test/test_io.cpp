@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -19,6 +20,7 @@
 
 #include "stereo_ground_dem/GreyConverter.hpp"
 #include "stereo_ground_dem/io/AllocatorTuning.hpp"
+#include "stereo_ground_dem/io/DemExporter.hpp"
 #include "stereo_ground_dem/io/DemMetadata.hpp"
 #include "stereo_ground_dem/io/ImageFileReader.hpp"
 #include "stereo_ground_dem/io/KittiSequence.hpp"
@@ -854,4 +856,45 @@ TEST_F(IoTest, KittiOdometryColourFoldersUseP2P3) {
   EXPECT_EQ(thrownMessage([&] { sgd::KittiSequence::open(path("odo")); }),
             "sequence '" + path("odo") + "': " + path("odo") +
                 "/calib.txt has no calibration for the cameras of the image folders found (image_2/image_3)");
+}
+
+TEST(OrthoTexture, PictureIsDrawnForwardUpLeftLeft) {
+  // Raster rows run along +y, columns along +x; the picture has +x up and +y to the left.
+  cv::Mat r(3, 5, CV_32F, cv::Scalar(std::nan("")));
+  r.at<float>(0, 4) = 200.0f;  // the most forward column, the rightmost row (smallest y)
+  r.at<float>(2, 0) = 50.0f;   // the rearmost, leftmost
+  const cv::Mat p = sgd::DemExporter::orthoPicture(r);
+  ASSERT_EQ(p.type(), CV_8UC4);
+  ASSERT_EQ(p.rows, 5);
+  ASSERT_EQ(p.cols, 3);
+  EXPECT_EQ(p.at<cv::Vec4b>(0, 2), cv::Vec4b(200, 200, 200, 255));  // top right
+  EXPECT_EQ(p.at<cv::Vec4b>(4, 0), cv::Vec4b(50, 50, 50, 255));     // bottom left
+  EXPECT_EQ(p.at<cv::Vec4b>(2, 1)[3], 0);                             // unknown: transparent
+}
+
+TEST_F(IoTest, OrthoLayersAreWrittenBesideTheDem) {
+  sgd::DemExport dem;
+  dem.grid = sgd::GroundGrid::covering(0.0, 2.0, -1.0, 1.0, 0.5);
+  dem.elevation = cv::Mat(dem.grid.rows, dem.grid.cols, CV_32F, cv::Scalar(0.1f));
+  dem.intensity = cv::Mat(dem.grid.rows, dem.grid.cols, CV_32F, cv::Scalar(90.0f));
+  dem.ortho_grid = sgd::GroundGrid::covering(0.0, 2.0, -1.0, 1.0, 0.1);
+  dem.ortho = cv::Mat(dem.ortho_grid.rows, dem.ortho_grid.cols, CV_32F, cv::Scalar(kNan));
+  dem.ortho.at<float>(3, 7) = 123.5f;
+  const std::vector<std::string> files = sgd::DemExporter::write(dir_.string(), dem);
+  for (const char* f : {"intensity.tif", "ortho.tif", "ortho.png"})
+    EXPECT_NE(std::find(files.begin(), files.end(), f), files.end()) << f;
+  sgd::GroundGrid g;
+  const cv::Mat o = sgd::GeoTiff::read(path("ortho.tif"), &g);
+  EXPECT_TRUE(g.sameLayout(dem.ortho_grid));
+  EXPECT_FLOAT_EQ(o.at<float>(3, 7), 123.5f);
+  EXPECT_EQ(cv::countNonZero(o == o), 1);
+  const cv::Mat png = cv::imread(path("ortho.png"), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(png.type(), CV_8UC4);
+  EXPECT_EQ(png.rows, dem.ortho_grid.cols);
+  EXPECT_EQ(png.at<cv::Vec4b>(dem.ortho_grid.cols - 1 - 7, dem.ortho_grid.rows - 1 - 3), cv::Vec4b(124, 124, 124, 255));
+  EXPECT_FLOAT_EQ(sgd::GeoTiff::read(path("intensity.tif")).at<float>(0, 0), 90.0f);
+  const sgd::DemMetadata meta = sgd::DemMetadata::read(path("dem.yaml"));
+  EXPECT_EQ(meta.extra_strings.at("ortho_file"), "ortho.tif");
+  EXPECT_EQ(meta.extra_strings.at("intensity_file"), "intensity.tif");
+  EXPECT_DOUBLE_EQ(meta.extra_numbers.at("ortho_resolution"), 0.1);
 }

@@ -162,6 +162,9 @@ class IncrementalEstimator {
   /// frame's start then comes from a motion search, which finds steps of up to ~4 m.
   bool velocityKnown() const { return predictor_.velocityKnown(); }
   const ElevationMap& map() const { return map_; }
+  /// The grey left image (CV_32F, 8-bit units, input resolution) of the last frame that moved the
+  /// pose on (initialized, tracked or recovered); empty before the first. What OrthoTexture drapes.
+  cv::Mat lastLeftImage() const { return prev_left_ ? prev_left_->level(0).image : cv::Mat(); }
   ElevationMap& map() { return map_; }
   const Eigen::Isometry3d& groundTCamera0() const { return ground_T_camera0_; }
   const Eigen::Isometry3d& lastGroundTCamera() const { return ground_T_camera_; }

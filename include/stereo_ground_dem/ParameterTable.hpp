@@ -10,6 +10,7 @@
 
 #include "stereo_ground_dem/GreyConverter.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/OrthoTexture.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 
 namespace stereo_ground_dem {
@@ -19,6 +20,7 @@ struct PipelineOptions {
   IncrementalEstimatorOptions estimator;
   TraversabilityOptions traversability = TraversabilityOptions::forCar();
   GreyConverterOptions input;  ///< image input: bit depth of 16-bit images, size limits
+  OrthoTextureOptions ortho;   ///< the ortho-texture layer (its keep radius follows map_keep_radius_m)
 
   bool isValid(std::string* why) const;
 };

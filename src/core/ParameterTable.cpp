@@ -25,6 +25,10 @@ bool PipelineOptions::isValid(std::string* why) const {
     if (why) *why = "input: " + w;
     return false;
   }
+  if (!ortho.isValid(&w)) {
+    if (why) *why = "ortho: " + w;
+    return false;
+  }
   return true;
 }
 
@@ -136,6 +140,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("step_window_radius_m", &t.step_window_radius_m, "half side of the robot-sized step window [m]", true);
   d("step_run_m", &t.step_run_m, "horizontal run over which a rise counts as a step [m]", true);
   d("roughness_window_radius_m", &t.roughness_window_radius_m, "half side of the roughness window [m]", true);
+  // ortho-texture
+  b("ortho_enabled", &o->ortho.enabled, "drape the left images onto the map (intensity layer, ortho.tif / ortho.png)");
+  d("ortho_resolution_m", &o->ortho.resolution_m, "texel size of the ortho-texture [m]");
+  d("ortho_max_range_m", &o->ortho.max_range_m, "image pixels farther than this from the camera are not draped [m]");
 }
 
 namespace {

@@ -1,10 +1,13 @@
 #include "stereo_ground_dem/io/DemExporter.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
 #include <sys/stat.h>
+
+#include <opencv2/core.hpp>
 
 #include "stereo_ground_dem/io/DemMetadata.hpp"
 #include "stereo_ground_dem/io/DemPicture.hpp"
@@ -52,13 +55,25 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
     GeoTiff::write(dir + "/obstacle_height.tif", dem.obstacle_height, dem.grid, "obstacle_height");
     written.push_back("obstacle_height.tif");
   }
+  if (!dem.intensity.empty()) {
+    GeoTiff::write(dir + "/intensity.tif", dem.intensity, dem.grid, "intensity");
+    written.push_back("intensity.tif");
+  }
+  if (!dem.ortho.empty()) {
+    GeoTiff::write(dir + "/ortho.tif", dem.ortho, dem.ortho_grid, "intensity");
+    written.push_back("ortho.tif");
+  }
   DemMetadata meta = DemMetadata::fromGrid(dem.grid, dem.ground_T_camera0, layers);
   for (const auto& kv : dem.extra) meta.extra_strings[kv.first] = kv.second;
   // companion rasters on the same grid
-  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif", "obstacle_height.tif"}) {
+  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif", "obstacle_height.tif", "intensity.tif"}) {
     if (std::find(written.begin(), written.end(), f) == written.end()) continue;
     std::string key = std::string(f).substr(0, std::string(f).find('.')) + "_file";
     meta.extra_strings[key] = f;
+  }
+  if (!dem.ortho.empty()) {
+    meta.extra_strings["ortho_file"] = "ortho.tif";
+    meta.extra_numbers["ortho_resolution"] = dem.ortho_grid.resolution_m;
   }
   meta.write(dir + "/dem.yaml");
   written.push_back("dem.yaml");
@@ -74,9 +89,31 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
                      DemPicture::traversabilityPicture(dem.traversability, dem.grid, to, dem.trajectory_xy));
     written.push_back("traversability.png");
   }
+  if (!dem.ortho.empty()) {
+    DemPicture::save(dir + "/ortho.png", orthoPicture(dem.ortho));
+    written.push_back("ortho.png");
+  }
   PlyWriter::writeMesh(dir + "/mesh.ply", dem.grid, dem.elevation);
   written.push_back("mesh.ply");
   return written;
+}
+
+cv::Mat DemExporter::orthoPicture(const cv::Mat& ortho) {
+  // Raster (r, c) = (y, x); the picture's pixel (col, row) = (rows-1-r, cols-1-c): +x up, +y left.
+  cv::Mat t;
+  cv::transpose(ortho, t);
+  cv::flip(t, t, -1);
+  cv::Mat out(t.size(), CV_8UC4, cv::Scalar(0, 0, 0, 0));
+  for (int r = 0; r < t.rows; ++r) {
+    const float* in = t.ptr<float>(r);
+    cv::Vec4b* o = out.ptr<cv::Vec4b>(r);
+    for (int c = 0; c < t.cols; ++c) {
+      if (!std::isfinite(in[c])) continue;
+      const auto g = static_cast<uchar>(std::clamp(std::lround(in[c]), 0L, 255L));
+      o[c] = cv::Vec4b(g, g, g, 255);
+    }
+  }
+  return out;
 }
 
 }  // namespace stereo_ground_dem

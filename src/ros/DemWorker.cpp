@@ -14,12 +14,18 @@ bool sameRig(const StereoRig& a, const StereoRig& b) {
 }  // namespace
 
 DemWorker::DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
-                     const std::string& logger)
+                     const std::string& logger, const OrthoTextureOptions& ortho)
     : publisher_(publisher),
       diagnostics_(diagnostics),
       logger_(logger),
       options_(options),
-      snapshot_(std::make_shared<MapSnapshot>()) {}
+      snapshot_(std::make_shared<MapSnapshot>()) {
+  if (ortho.enabled) {
+    OrthoTextureOptions o = ortho;
+    o.keep_radius_m = options.map.keep_radius_m;
+    ortho_ = std::make_unique<OrthoTexture>(o);
+  }
+}
 
 DemWorker::~DemWorker() { stop(); }
 
@@ -98,6 +104,7 @@ void DemWorker::applyReset() {
   }
   if (reset) {
     publisher_.reset();
+    if (ortho_) ortho_->clear();
     trajectory_xy_.clear();
     fused_frames_ = 0;
     last_processed_stamp_s_ = -1.0;
@@ -115,6 +122,7 @@ void DemWorker::process(StereoFrame& f) {
     if (estimator_) {
       diagnostics_.restarted("the camera calibration changed (camera_info P or size): starting a new map", true);
       publisher_.reset();
+      if (ortho_) ortho_->clear();
       trajectory_xy_.clear();
       fused_frames_ = 0;
       last_processed_stamp_s_ = -1.0;
@@ -174,7 +182,16 @@ void DemWorker::process(StereoFrame& f) {
   const ElevationMap& map = estimator_->map();
   if (estimator_->initialized()) {
     trajectory_xy_.push_back(fr.ground_T_camera.translation().head<2>());
-    record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame);
+    if (ortho_ && fr.status != FrameStatus::kFailed) {  // the left image draped on the map just fused
+      try {
+        ortho_->update(map, fr.window, estimator_->lastLeftImage(), estimator_->rig(), fr.ground_T_camera,
+                       fr.photometric[1]);
+        ortho_->evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
+      } catch (const std::exception& e) {  // never expected; never fatal either
+        diagnostics_.problem(std::string("ortho-texture: ") + e.what(), false);
+      }
+    }
+    record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame, ortho_.get());
     if (fr.status != FrameStatus::kFailed) {  // a failed frame's pose is only the prediction
       try {
         record.attitude = attitude_.estimate(map, fr.ground_T_camera);
@@ -186,6 +203,7 @@ void DemWorker::process(StereoFrame& f) {
     if (fr.status != FrameStatus::kFailed) ++fused_frames_;
     auto snap = std::make_shared<MapSnapshot>();
     snap->map = std::make_shared<const ElevationMap>(map);
+    if (ortho_) snap->ortho = std::make_shared<const OrthoTexture>(*ortho_);
     snap->ground_T_camera0 = estimator_->groundTCamera0();
     snap->trajectory_xy = trajectory_xy_;
     snap->stamp = f.stamp;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -41,9 +42,13 @@ std_msgs::ColorRGBA HeightMeshBuilder::color(double u, float alpha) {
 
 visualization_msgs::Marker HeightMeshBuilder::build(const GroundGrid& grid, const cv::Mat& elevation,
                                                     const std_msgs::Header& header,
-                                                    const HeightMeshOptions& options) {
+                                                    const HeightMeshOptions& options, const cv::Mat* intensity) {
   if (elevation.type() != CV_32F || elevation.rows != grid.rows || elevation.cols != grid.cols) {
     throw std::invalid_argument("elevation layer does not match the grid");
+  }
+  const bool grey = options.color_by_intensity && intensity && !intensity->empty();
+  if (grey && (intensity->type() != CV_32F || intensity->size() != elevation.size())) {
+    throw std::invalid_argument("intensity layer does not match the grid");
   }
   visualization_msgs::Marker m;
   m.header = header;
@@ -89,7 +94,15 @@ visualization_msgs::Marker HeightMeshBuilder::build(const GroundGrid& grid, cons
     p.y = grid.yOfRow(r * s);
     p.z = z(r, c);
     m.points.push_back(p);
-    m.colors.push_back(color((p.z - lo) / (hi - lo), options.alpha));
+    const float g = grey ? intensity->at<float>(r * s, c * s) : std::numeric_limits<float>::quiet_NaN();
+    if (std::isfinite(g)) {
+      std_msgs::ColorRGBA k;
+      k.r = k.g = k.b = std::min(1.0f, std::max(0.0f, g / 255.0f));
+      k.a = options.alpha;
+      m.colors.push_back(k);
+    } else {
+      m.colors.push_back(color((p.z - lo) / (hi - lo), options.alpha));
+    }
   };
   m.points.reserve(static_cast<size_t>(3 * triangles(rows, cols)));
   m.colors.reserve(m.points.capacity());

@@ -43,7 +43,8 @@ int MapWindowSampler::stride(int rows, int cols, int max_cells) {
   return s;
 }
 
-DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& requested, int max_cells) const {
+DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& requested, int max_cells,
+                                   const OrthoTexture* ortho) const {
   GroundGrid w = requested;
   const int s = stride(w.rows, w.cols, max_cells);
   if (s > 1) {  // align the window to the stride so that the decimated grid is on a lattice too
@@ -84,6 +85,7 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
                 {"traversability", traversability},
                 {"obstacle", obstacle},
                 {"obstacle_height", map.layer(ElevationMap::Layer::kObstacleHeight, w)}};
+  if (ortho) out.layers.push_back({"intensity", ortho->sample(w)});
   if (s > 1) {
     out.grid = w.coarsened(s);
     for (GridLayer& l : out.layers) {

@@ -9,7 +9,7 @@ const std::vector<std::string>& RosNodeOptions::names() {
   static const std::vector<std::string> kNames = {
       "queue_size", "approximate_sync", "slop_s", "lazy", "tune_allocator", "odom_frame", "base_frame", "camera_frame",
       "publish_tf", "tf_wait_s", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
-      "global_map_max_cells", "mesh_max_triangles", "occupancy_unknown_below", "path_max_poses",
+      "global_map_max_cells", "mesh_max_triangles", "mesh_colors", "occupancy_unknown_below", "path_max_poses",
       "save_directory", "diagnostic_period_s", "input_check_period_s", "unobserved_std_m", "unobserved_std_rad",
       "motion_covariance_scale",
       "restart_back_s", "max_stamp_gap_s", "image_transport"};
@@ -33,6 +33,9 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("global_map_rate_hz", o.global_map_rate_hz, o.global_map_rate_hz);
   pnh.param("global_map_max_cells", o.global_map_max_cells, o.global_map_max_cells);
   pnh.param("mesh_max_triangles", o.mesh.max_triangles, o.mesh.max_triangles);
+  std::string mesh_colors = o.mesh.color_by_intensity ? "intensity" : "height";
+  pnh.param("mesh_colors", mesh_colors, mesh_colors);
+  o.mesh.color_by_intensity = mesh_colors == "intensity";
   pnh.param("occupancy_unknown_below", o.occupancy_unknown_below, o.occupancy_unknown_below);
   pnh.param("path_max_poses", o.path_max_poses, o.path_max_poses);
   pnh.param("save_directory", o.save_directory, o.save_directory);
@@ -52,6 +55,9 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   if (!(o.global_map_rate_hz >= 0.0)) bad.push_back("~global_map_rate_hz must be >= 0");
   if (o.global_map_max_cells < 4) bad.push_back("~global_map_max_cells must be >= 4");
   if (o.mesh.max_triangles < 2) bad.push_back("~mesh_max_triangles must be >= 2");
+  if (mesh_colors != "height" && mesh_colors != "intensity") {
+    bad.push_back("~mesh_colors must be 'height' or 'intensity', got '" + mesh_colors + "'");
+  }
   if (o.path_max_poses < 1) bad.push_back("~path_max_poses must be >= 1");
   if (!(o.unobserved_std_m > 0.0) || !(o.unobserved_std_rad > 0.0)) bad.push_back("~unobserved_std_* must be > 0");
   if (!(o.motion_covariance_scale > 0.0) || !std::isfinite(o.motion_covariance_scale)) {

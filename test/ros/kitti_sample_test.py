@@ -24,7 +24,7 @@ from stereo_ground_dem.srv import GetSubmap, SaveMap  # noqa: E402
 POSITION_STD_RANGE_M = (0.018, 0.075)
 NS = '/stereo_ground_dem'
 LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability', 'obstacle',
-          'obstacle_height']
+          'obstacle_height', 'intensity']
 
 
 class KittiSampleTest(unittest.TestCase):
@@ -60,6 +60,13 @@ class KittiSampleTest(unittest.TestCase):
         t = sup.layer(last, 'traversability')
         tk = t[np.isfinite(t)]
         self.assertTrue(((tk >= 0) & (tk <= 1)).all())
+        # the ortho-texture's grey per cell: known where the ground is (the road seen up close), in
+        # grey levels of the first frame's exposure
+        g = sup.layer(last, 'intensity')
+        both = np.isfinite(g) & np.isfinite(sup.layer(last, 'elevation'))
+        self.assertGreater(np.count_nonzero(both), 0.5 * h.size, 'intensity where the elevation is known')
+        self.assertTrue(((g[np.isfinite(g)] >= 0) & (g[np.isfinite(g)] <= 255)).all())
+        self.assertGreater(float(np.std(g[both])), 3.0, 'the road has texture')
         occ = np.array(self.rec.occupancy[-1][1].data)
         self.assertTrue(((occ >= -1) & (occ <= 100)).all())
         self.assertGreater(np.count_nonzero(occ == 0) + np.count_nonzero((occ > 0) & (occ < 50)), 100,
@@ -142,7 +149,7 @@ class KittiSampleTest(unittest.TestCase):
         sup.run([sup.executable('dem_offline'), '--sequence', self.sequence, '--out', offline, '--config',
                  os.path.join(sup.source_dir(), 'config', 'kitti.yaml'), '--quiet'])
         for name in ['dem.tif', 'dem.yaml', 'variance.tif', 'traversability.tif', 'dem_height.png',
-                     'traversability.png', 'mesh.ply']:
+                     'traversability.png', 'mesh.ply', 'intensity.tif', 'ortho.tif', 'ortho.png']:
             self.assertTrue(os.path.isfile(os.path.join(out, name)), name)
             self.assertTrue(os.path.isfile(os.path.join(offline, name)), name)
         with open(os.path.join(out, 'dem.yaml')) as f:

@@ -29,7 +29,7 @@ from stereo_ground_dem.srv import GetSubmap  # noqa: E402
 
 NS = '/stereo_ground_dem'
 LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability', 'obstacle',
-          'obstacle_height']
+          'obstacle_height', 'intensity']
 
 
 class ReconfigureTest(unittest.TestCase):

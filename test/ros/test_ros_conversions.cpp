@@ -133,6 +133,33 @@ TEST(HeightMeshBuilder, OnlyKnownTrianglesNoNaN) {
   for (const auto& p : m.points) EXPECT_TRUE(std::isfinite(p.z));
 }
 
+TEST(HeightMeshBuilder, GreyFromTheIntensityLayer) {
+  const GroundGrid g = smallGrid();
+  cv::Mat e(g.rows, g.cols, CV_32F, cv::Scalar(0.1f));
+  cv::Mat in(g.rows, g.cols, CV_32F, cv::Scalar(51.0f));
+  in.at<float>(0, 0) = kNaN;  // unknown grey: the height colour
+  HeightMeshOptions opt;
+  const visualization_msgs::Marker heights = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, &in);
+  opt.color_by_intensity = true;
+  const visualization_msgs::Marker grey = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, &in);
+  ASSERT_EQ(grey.colors.size(), heights.colors.size());
+  int grey_vertices = 0;
+  for (size_t i = 0; i < grey.points.size(); ++i) {
+    const bool origin = grey.points[i].x == g.x0() && grey.points[i].y == g.y0();
+    if (origin) {
+      EXPECT_EQ(grey.colors[i].r, heights.colors[i].r);
+      continue;
+    }
+    EXPECT_FLOAT_EQ(grey.colors[i].r, 0.2f);
+    EXPECT_FLOAT_EQ(grey.colors[i].g, 0.2f);
+    EXPECT_FLOAT_EQ(grey.colors[i].b, 0.2f);
+    ++grey_vertices;
+  }
+  EXPECT_GT(grey_vertices, 0);
+  const cv::Mat wrong(2, 2, CV_32F, cv::Scalar(1.0f));
+  EXPECT_THROW(HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, &wrong), std::invalid_argument);
+}
+
 TEST(StereoInputValidator, CameraInfoAndEncodings) {
   StereoInputValidator v;
   const auto l = info(500, 0), r = info(500, -500 * 0.54);

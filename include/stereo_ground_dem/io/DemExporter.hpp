@@ -5,7 +5,11 @@
 ///   dem.tif (float32 heights [m], NaN unknown), dem.yaml (grid, origin, ground_T_camera0, layers),
 ///   variance.tif [m^2], traversability.tif [0..1], obstacles.tif (1 obstacle, 0 ground seen, NaN
 ///   unknown) and obstacle_height.tif [m above the ground] when given,
-///   dem_height.png (shaded, coloured, legend, trajectory), traversability.png, mesh.ply.
+///   dem_height.png (shaded, coloured, legend, trajectory), traversability.png, mesh.ply;
+///   with an ortho-texture (OrthoTexture): intensity.tif (its mean grey per DEM cell), ortho.tif (float32
+///   grey on the texel lattice, the same GeoTIFF conventions at ortho_grid's resolution) and ortho.png
+///   (8-bit grey + alpha, unknown transparent, drawn like the map pictures: +x up, +y left, one pixel
+///   per texel).
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
@@ -23,6 +27,9 @@ struct DemExport {
   cv::Mat traversability;  ///< optional [0..1]
   cv::Mat obstacles;       ///< optional: 1 obstacle (on or hidden by one), 0 ground seen, NaN unknown
   cv::Mat obstacle_height; ///< optional: obstacle top above the ground [m], NaN where none measured
+  cv::Mat intensity;       ///< optional: ortho-texture grey per cell [8-bit units], NaN unknown
+  cv::Mat ortho;           ///< optional: the ortho-texture on ortho_grid (CV_32F grey, NaN unknown)
+  GroundGrid ortho_grid;   ///< the texel lattice window of `ortho`
   Eigen::Isometry3d ground_T_camera0 = Eigen::Isometry3d::Identity();
   std::vector<Eigen::Vector2d> trajectory_xy;  ///< ground (x, y) of the camera per frame
   std::vector<std::pair<std::string, std::string>> extra;  ///< extra dem.yaml entries (strings)
@@ -35,6 +42,8 @@ class DemExporter {
   static std::vector<std::string> write(const std::string& directory, const DemExport& dem, bool pictures = true);
   /// mkdir -p; throws std::runtime_error on failure.
   static void makeDirectories(const std::string& directory);
+  /// The ortho-texture as a picture: BGRA, +x up, +y left, one pixel per texel, unknown transparent.
+  static cv::Mat orthoPicture(const cv::Mat& ortho);
 };
 
 }  // namespace stereo_ground_dem

@@ -30,8 +30,9 @@ namespace stereo_ground_dem {
 
 class DemWorker {
  public:
+  /// `ortho`: the ortho-texture's options (its keep radius is taken from the map's).
   DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
-            const std::string& logger);
+            const std::string& logger, const OrthoTextureOptions& ortho = OrthoTextureOptions());
   ~DemWorker();  ///< stop()
 
   void start();
@@ -74,6 +75,7 @@ class DemWorker {
   // processing thread only
   std::unique_ptr<IncrementalEstimator> estimator_;
   std::vector<Eigen::Vector2d> trajectory_xy_;
+  std::unique_ptr<OrthoTexture> ortho_;  ///< null when disabled; cleared with the map
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   double last_processed_stamp_s_ = -1.0;

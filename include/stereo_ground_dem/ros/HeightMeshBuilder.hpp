@@ -7,6 +7,8 @@
 ///    the smallest integer stride s (every s-th vertex along rows and columns) that fits.
 ///  - Colours: a perceptually ordered map (dark blue, low .. yellow, high) over [color_min_m,
 ///    color_max_m]; NaN bounds mean "automatic": the 2nd and 98th percentiles of the known heights.
+///    With color_by_intensity and an intensity layer (the ortho-texture's grey per cell), the mesh
+///    is drawn in the ground's own grey instead (height colours where the intensity is unknown).
 
 #include <std_msgs/ColorRGBA.h>
 #include <std_msgs/Header.h>
@@ -25,6 +27,7 @@ struct HeightMeshOptions {
   double color_min_m = std::numeric_limits<double>::quiet_NaN();  ///< height shown darkest [m]; NaN: auto
   double color_max_m = std::numeric_limits<double>::quiet_NaN();  ///< height shown brightest [m]; NaN: auto
   float alpha = 1.0f;         ///< opacity [0..1]
+  bool color_by_intensity = false;  ///< grey from the intensity layer (~mesh_colors: intensity)
   std::string ns = "dem";     ///< marker namespace
   int id = 0;
 };
@@ -33,8 +36,10 @@ class HeightMeshBuilder {
  public:
   /// `elevation`: CV_32F grid.rows x grid.cols [m], NaN unknown. With no known triangle the marker
   /// is a DELETE of (ns, id), so that rviz drops the previous mesh.
+  /// `intensity` (optional, same size, grey 0..255, NaN unknown) is used with color_by_intensity.
   static visualization_msgs::Marker build(const GroundGrid& grid, const cv::Mat& elevation,
-                                          const std_msgs::Header& header, const HeightMeshOptions& options);
+                                          const std_msgs::Header& header, const HeightMeshOptions& options,
+                                          const cv::Mat* intensity = nullptr);
   /// The smallest stride s >= 1 whose decimated grid has at most max_triangles triangles.
   static int stride(int rows, int cols, int max_triangles);
   /// The colour of a normalized height u in [0, 1] (clamped).

@@ -4,8 +4,9 @@
 ///   elevation [m], variance [m^2], observations [frames] (ElevationMap::layer), and
 ///   slope [rad], step [m], roughness [m], traversability [0..1] (TraversabilityFilter), and
 ///   obstacle [1 obstacle, 0 ground seen last], obstacle_height [m above the ground]
-///   (ElevationMap::Layer::kObstacle, kObstacleHeight). Traversability is 0 wherever obstacle is 1,
-///   also where the ground under the obstacle is unknown.
+///   (ElevationMap::Layer::kObstacle, kObstacleHeight), and, with an ortho-texture, intensity [grey,
+///   the first frame's exposure, 8-bit units] (OrthoTexture::sample: the mean of the cell's texels).
+///   Traversability is 0 wherever obstacle is 1, also where the ground under the obstacle is unknown.
 /// All CV_32F, NaN where unknown. The filter runs on the window grown by its largest window
 /// radius so that cells at the border see the same neighbourhood as inside the map, then is
 /// cropped back. Large windows are decimated (every s-th vertex, the window aligned to s) to keep
@@ -17,6 +18,7 @@
 
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/GroundGrid.hpp"
+#include "stereo_ground_dem/OrthoTexture.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 #include "stereo_ground_dem/ros/GridLayer.hpp"
 
@@ -39,8 +41,9 @@ class MapWindowSampler {
   void setTraversability(const TraversabilityOptions& options);
 
   /// The layers over `window` (on the map's lattice), decimated by the smallest stride that
-  /// keeps at most max_cells vertices (max_cells <= 0: no limit).
-  DemLayers sample(const ElevationMap& map, const GroundGrid& window, int max_cells = 0) const;
+  /// keeps at most max_cells vertices (max_cells <= 0: no limit); `ortho` adds the intensity layer.
+  DemLayers sample(const ElevationMap& map, const GroundGrid& window, int max_cells = 0,
+                   const OrthoTexture* ortho = nullptr) const;
 
   /// The lattice window of spacing resolution_m whose vertex rectangle has its centre nearest to
   /// (center_x, center_y) and spans at least size_x_m x size_y_m (at least 2 x 2 vertices).

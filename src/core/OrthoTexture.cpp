@@ -1,0 +1,258 @@
+#include "stereo_ground_dem/OrthoTexture.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+namespace {
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+long long floorDiv(long long a, long long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+std::int64_t tileKey(long long tile_row, long long tile_col) {
+  return static_cast<std::int64_t>((static_cast<std::uint64_t>(static_cast<std::uint32_t>(tile_row)) << 32) |
+                                   static_cast<std::uint32_t>(tile_col));
+}
+
+/// Bilinear sample of a CV_32F image at (u, v), inside by the caller's check.
+float bilinear(const cv::Mat& img, double u, double v) {
+  const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+  const float a = static_cast<float>(u - u0), b = static_cast<float>(v - v0);
+  const float* r0 = img.ptr<float>(v0) + u0;
+  const float* r1 = img.ptr<float>(v0 + 1) + u0;
+  return (1.0f - b) * ((1.0f - a) * r0[0] + a * r0[1]) + b * ((1.0f - a) * r1[0] + a * r1[1]);
+}
+}  // namespace
+
+bool OrthoTextureOptions::isValid(std::string* why) const {
+  auto bad = [why](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (!(resolution_m >= 0.01 && resolution_m <= 10.0)) return bad("resolution_m must be in 0.01..10");
+  if (tile_size < 8 || tile_size > 4096) return bad("tile_size must be in 8..4096");
+  if (!(keep_radius_m > 0.0)) return bad("keep_radius_m must be > 0");
+  if (!(min_range_m > 0.0 && max_range_m > min_range_m)) return bad("need 0 < min_range_m < max_range_m");
+  if (!(min_pixels_per_texel >= 0.0 && std::isfinite(min_pixels_per_texel))) return bad("min_pixels_per_texel must be >= 0");
+  if (!(better_view_ratio > 1.0 && std::isfinite(better_view_ratio))) return bad("better_view_ratio must be > 1");
+  if (max_average_views < 1 || max_average_views > 255) return bad("max_average_views must be in 1..255");
+  if (image_margin_px < 1 || image_margin_px > 1000) return bad("image_margin_px must be in 1..1000");
+  return true;
+}
+
+OrthoTexture::OrthoTexture(const OrthoTextureOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.isValid(&why)) throw std::invalid_argument("OrthoTextureOptions: " + why);
+}
+
+OrthoTexture::Tile* OrthoTexture::tileFor(long long ti, long long tj, bool create, size_t* index) {
+  const long long ts = options_.tile_size;
+  const long long tr = floorDiv(ti, ts), tc = floorDiv(tj, ts);
+  *index = static_cast<size_t>((ti - tr * ts) * ts + (tj - tc * ts));
+  const Key k = tileKey(tr, tc);
+  auto it = tiles_.find(k);
+  if (it != tiles_.end()) {
+    // Written through: a tile another copy still holds is cloned first. use_count() can only drop
+    // meanwhile (copies are made on this object's thread), which at worst clones once too often.
+    if (it->second.use_count() > 1) it->second = std::make_shared<Tile>(*it->second);
+    return it->second.get();
+  }
+  if (!create) return nullptr;
+  auto t = std::make_shared<Tile>();
+  const size_t n = static_cast<size_t>(ts * ts);
+  t->value.assign(n, kNaN);
+  t->quality.assign(n, 0.0f);
+  t->views.assign(n, 0);
+  return tiles_.emplace(k, std::move(t)).first->second.get();
+}
+
+const OrthoTexture::Tile* OrthoTexture::tileFor(long long ti, long long tj, size_t* index) const {
+  const long long ts = options_.tile_size;
+  const long long tr = floorDiv(ti, ts), tc = floorDiv(tj, ts);
+  *index = static_cast<size_t>((ti - tr * ts) * ts + (tj - tc * ts));
+  const auto it = tiles_.find(tileKey(tr, tc));
+  return it == tiles_.end() ? nullptr : it->second.get();
+}
+
+int OrthoTexture::update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left, const StereoRig& rig,
+                         const Eigen::Isometry3d& ground_T_camera, const PhotometricParams& left_vs_previous) {
+  if (!options_.enabled) return 0;
+  if (left.type() != CV_32FC1) throw std::invalid_argument("OrthoTexture::update: the left image must be CV_32F grey");
+  if (left.cols < 2 || left.rows < 2) throw std::invalid_argument("OrthoTexture::update: empty left image");
+  // Exposure chain: L_k = g L_{k-1} + b, so L_{k-1} = (L_k - b) / g and the reference map of L_k
+  // is the previous one applied to that. An implausible step is not chained (identity).
+  const double g = left_vs_previous.gain, b = left_vs_previous.bias_grey;
+  if (!has_reference_) {
+    to_reference_ = PhotometricParams();
+    has_reference_ = true;
+  } else if (std::isfinite(g) && std::isfinite(b) && g > 0.2 && g < 5.0 && std::abs(b) < 255.0) {
+    to_reference_ = {to_reference_.gain / g, to_reference_.bias_grey - to_reference_.gain * b / g};
+  }
+  if (window.vertexCount() == 0) return 0;
+
+  Eigen::VectorXd z, info;
+  map.sample(window, &z, &info);
+  const cv::Mat obstacle = map.layer(ElevationMap::Layer::kObstacle, window);
+  const Eigen::Isometry3d camera_T_ground = ground_T_camera.inverse();
+  const Eigen::Matrix3d R = camera_T_ground.linear();
+  const Eigen::Vector3d t = camera_T_ground.translation();
+  const double res = options_.resolution_m, R_m = window.resolution_m;
+  const double u_min = options_.image_margin_px, v_min = options_.image_margin_px;
+  const double u_max = left.cols - 1 - options_.image_margin_px, v_max = left.rows - 1 - options_.image_margin_px;
+  const double gain_ref = to_reference_.gain, bias_ref = to_reference_.bias_grey;
+  const double texel_area = res * res;
+  const double min_q = options_.min_pixels_per_texel, ratio = options_.better_view_ratio;
+  const int max_views = options_.max_average_views;
+  auto blocked = [&](int r, int c) { return obstacle.at<float>(r, c) == 1.0f; };
+  int written = 0;
+  for (int r = 0; r + 1 < window.rows; ++r) {
+    for (int c = 0; c + 1 < window.cols; ++c) {
+      const double z00 = z[window.index(r, c)], z01 = z[window.index(r, c + 1)];
+      const double z10 = z[window.index(r + 1, c)], z11 = z[window.index(r + 1, c + 1)];
+      if (!(std::isfinite(z00) && std::isfinite(z01) && std::isfinite(z10) && std::isfinite(z11))) continue;
+      if (blocked(r, c) || blocked(r, c + 1) || blocked(r + 1, c) || blocked(r + 1, c + 1)) continue;
+      const double xc = window.xOfCol(c), yc = window.yOfRow(r);
+      // Quick reject: the square's centre far outside the range band (the square is < 1 m).
+      const Eigen::Vector3d centre = R * Eigen::Vector3d(xc + 0.5 * R_m, yc + 0.5 * R_m, 0.25 * (z00 + z01 + z10 + z11)) + t;
+      if (centre.z() < options_.min_range_m - 2.0 * R_m || centre.z() > options_.max_range_m + 2.0 * R_m) continue;
+      // Both triangles' unit normals in the camera frame (GroundGrid's split along (r,c)-(r+1,c+1)).
+      const Eigen::Vector3d na =
+          (R * Eigen::Vector3d(-(z01 - z00) / R_m, -(z11 - z01) / R_m, 1.0)).normalized();  // s >= t
+      const Eigen::Vector3d nb =
+          (R * Eigen::Vector3d(-(z11 - z10) / R_m, -(z10 - z00) / R_m, 1.0)).normalized();  // t > s
+      const long long j_lo = static_cast<long long>(std::ceil(xc / res - 1e-6));
+      const long long j_hi = static_cast<long long>(std::ceil((xc + R_m) / res - 1e-6)) - 1;
+      const long long i_lo = static_cast<long long>(std::ceil(yc / res - 1e-6));
+      const long long i_hi = static_cast<long long>(std::ceil((yc + R_m) / res - 1e-6)) - 1;
+      for (long long i = i_lo; i <= i_hi; ++i) {
+        const double y = i * res, tt = std::clamp((y - yc) / R_m, 0.0, 1.0);
+        for (long long j = j_lo; j <= j_hi; ++j) {
+          const double x = j * res, s = std::clamp((x - xc) / R_m, 0.0, 1.0);
+          const bool upper = tt > s;
+          const double h = upper ? z00 + tt * (z10 - z00) + s * (z11 - z10) : z00 + s * (z01 - z00) + tt * (z11 - z01);
+          const Eigen::Vector3d pc = R * Eigen::Vector3d(x, y, h) + t;
+          if (pc.z() < options_.min_range_m || pc.z() > options_.max_range_m) continue;
+          const double iz = 1.0 / pc.z();
+          const double u = rig.fx * pc.x() * iz + rig.cx, v = rig.fy * pc.y() * iz + rig.cy;
+          if (!(u >= u_min && u <= u_max && v >= v_min && v <= v_max)) continue;
+          // Image pixels per texel side: sqrt(f^2 |n . X| / Z^3 * texel area).
+          const double q = std::sqrt(rig.fx * rig.fy * std::abs((upper ? nb : na).dot(pc)) * iz * iz * iz * texel_area);
+          if (q < min_q) continue;
+          const float value = static_cast<float>(gain_ref * bilinear(left, u, v) + bias_ref);
+          if (!std::isfinite(value)) continue;
+          size_t k = 0;
+          Tile* tile = tileFor(i, j, true, &k);
+          const float stored_q = tile->quality[k];
+          if (tile->views[k] == 0 || q >= ratio * stored_q) {
+            tile->value[k] = value;
+            tile->quality[k] = static_cast<float>(q);
+            tile->views[k] = 1;
+          } else if (q * ratio >= stored_q) {
+            const int n = std::min<int>(tile->views[k] + 1, max_views);
+            tile->value[k] += (value - tile->value[k]) / static_cast<float>(n);
+            tile->quality[k] = std::max(stored_q, static_cast<float>(q));
+            tile->views[k] = static_cast<uint8_t>(n);
+          } else {
+            continue;
+          }
+          ++written;
+        }
+      }
+    }
+  }
+  return written;
+}
+
+cv::Mat OrthoTexture::sample(const GroundGrid& grid) const {
+  cv::Mat out(grid.rows, grid.cols, CV_32F, cv::Scalar(kNaN));
+  const double res = options_.resolution_m;
+  // Texels within half a cell of the vertex: a box of h texels on each side (h = 0 at the texel
+  // resolution: the texel itself).
+  const int h = std::abs(grid.resolution_m - res) < 1e-9 ? 0 : std::max(0, static_cast<int>(0.5 * grid.resolution_m / res + 1e-6));
+  for (int r = 0; r < grid.rows; ++r) {
+    const long long ic = std::llround(grid.yOfRow(r) / res);
+    for (int c = 0; c < grid.cols; ++c) {
+      const long long jc = std::llround(grid.xOfCol(c) / res);
+      double sum = 0.0;
+      int n = 0;
+      for (long long i = ic - h; i <= ic + h; ++i) {
+        for (long long j = jc - h; j <= jc + h; ++j) {
+          size_t k = 0;
+          const Tile* tile = tileFor(i, j, &k);
+          if (!tile || tile->views[k] == 0) continue;
+          sum += tile->value[k];
+          ++n;
+        }
+      }
+      if (n > 0) out.at<float>(r, c) = static_cast<float>(sum / n);
+    }
+  }
+  return out;
+}
+
+GroundGrid OrthoTexture::knownBounds() const {
+  GroundGrid g;
+  g.resolution_m = options_.resolution_m;
+  long long i0 = std::numeric_limits<long long>::max(), j0 = i0, i1 = std::numeric_limits<long long>::min(), j1 = i1;
+  const long long ts = options_.tile_size;
+  for (const auto& [key, tile] : tiles_) {
+    const long long tr = static_cast<std::int32_t>(static_cast<std::uint64_t>(key) >> 32);
+    const long long tc = static_cast<std::int32_t>(static_cast<std::uint64_t>(key) & 0xffffffffu);
+    for (long long a = 0; a < ts; ++a) {
+      for (long long b = 0; b < ts; ++b) {
+        if (tile->views[static_cast<size_t>(a * ts + b)] == 0) continue;
+        i0 = std::min(i0, tr * ts + a);
+        i1 = std::max(i1, tr * ts + a);
+        j0 = std::min(j0, tc * ts + b);
+        j1 = std::max(j1, tc * ts + b);
+      }
+    }
+  }
+  if (i1 < i0) return g;
+  g.row0 = static_cast<int>(i0);
+  g.col0 = static_cast<int>(j0);
+  g.rows = static_cast<int>(i1 - i0 + 1);
+  g.cols = static_cast<int>(j1 - j0 + 1);
+  return g;
+}
+
+cv::Mat OrthoTexture::raster(GroundGrid* grid) const {
+  const GroundGrid g = knownBounds();
+  if (grid) *grid = g;
+  if (g.vertexCount() == 0) return cv::Mat();
+  return sample(g);
+}
+
+int OrthoTexture::evictFarFrom(double x, double y) {
+  const double side = options_.tile_size * options_.resolution_m;
+  int removed = 0;
+  for (auto it = tiles_.begin(); it != tiles_.end();) {
+    const long long tr = static_cast<std::int32_t>(static_cast<std::uint64_t>(it->first) >> 32);
+    const long long tc = static_cast<std::int32_t>(static_cast<std::uint64_t>(it->first) & 0xffffffffu);
+    const double cx = (tc + 0.5) * side, cy = (tr + 0.5) * side;
+    if (std::hypot(cx - x, cy - y) > options_.keep_radius_m) {
+      it = tiles_.erase(it);
+      ++removed;
+    } else {
+      ++it;
+    }
+  }
+  return removed;
+}
+
+void OrthoTexture::clear() {
+  tiles_.clear();
+  to_reference_ = PhotometricParams();
+  has_reference_ = false;
+}
+
+size_t OrthoTexture::memoryBytes() const {
+  const size_t per = static_cast<size_t>(options_.tile_size) * static_cast<size_t>(options_.tile_size) *
+                     (sizeof(float) * 2 + sizeof(uint8_t));
+  return tiles_.size() * per;
+}
+
+}  // namespace stereo_ground_dem

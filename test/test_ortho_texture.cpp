@@ -1,0 +1,273 @@
+// OrthoTexture: the image draped on the map, exact on a plane seen by a pinhole camera; the
+// exposure chain, the best-resolved view, obstacle cells, the per-cell sample and the picture's
+// orientation.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "stereo_ground_dem/OrthoTexture.hpp"
+
+namespace sgd = stereo_ground_dem;
+
+namespace {
+
+sgd::StereoRig rig() {
+  sgd::StereoRig r;
+  r.fx = r.fy = 700.0;
+  r.cx = 600.0;
+  r.cy = 180.0;
+  r.baseline_m = 0.54;
+  r.width = 1200;
+  r.height = 370;
+  return r;
+}
+
+/// A camera 1.65 m above the ground at (x, 0), looking along +x (camera x = -y, y = -z, z = +x).
+Eigen::Isometry3d camera(double x) {
+  Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
+  g.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  g.translation() = Eigen::Vector3d(x, 0.0, 1.65);
+  return g;
+}
+
+/// The ground's grey level at (x, y): smooth, so that a bilinear image sample is exact to ~0.1 grey.
+/// Along x the wave is long: 30 m ahead a pixel spans 0.7 m of ground along the view.
+double albedo(double x, double y) { return 120.0 + 40.0 * std::sin(2.0 * M_PI * x / 8.0) + 30.0 * std::cos(2.0 * M_PI * y / 1.5); }
+
+/// The image of the level ground z = 0 (albedo * gain + bias) seen from `g_t_c`; the sky is 250.
+cv::Mat image(const Eigen::Isometry3d& g_t_c, double gain = 1.0, double bias = 0.0, double offset = 0.0) {
+  const sgd::StereoRig k = rig();
+  cv::Mat im(k.height, k.width, CV_32F);
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const Eigen::Vector3d d = g_t_c.linear() * Eigen::Vector3d((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0);
+      if (d.z() >= -1e-6) {
+        im.at<float>(v, u) = 250.0f;
+        continue;
+      }
+      const double t = -g_t_c.translation().z() / d.z();
+      const Eigen::Vector3d p = g_t_c.translation() + t * d;
+      im.at<float>(v, u) = static_cast<float>(gain * (albedo(p.x(), p.y()) + offset) + bias);
+    }
+  }
+  return im;
+}
+
+/// A level map (heights 0) over x 0..60 m, y -20..20 m.
+sgd::ElevationMap levelMap(sgd::GroundGrid* window) {
+  *window = sgd::GroundGrid::covering(0.0, 60.0, -20.0, 20.0, 0.5);
+  sgd::ElevationMap map;
+  const int n = window->vertexCount();
+  map.fuse(*window, Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 1e4),
+           std::vector<uint8_t>(static_cast<size_t>(n), 1), 0);
+  return map;
+}
+
+/// Largest |texture - expected| over the known texels with x in [x0, x1], y in [y0, y1]; counts them.
+double worstError(const sgd::OrthoTexture& t, double x0, double x1, double offset, int* known, double y0 = -3.0,
+                  double y1 = 3.0) {
+  const sgd::GroundGrid g = sgd::GroundGrid::covering(x0, x1, y0, y1, 0.1);
+  const cv::Mat m = t.sample(g);
+  double worst = 0.0;
+  *known = 0;
+  for (int r = 0; r < g.rows; ++r) {
+    for (int c = 0; c < g.cols; ++c) {
+      const float v = m.at<float>(r, c);
+      if (!std::isfinite(v)) continue;
+      ++*known;
+      worst = std::max(worst, std::abs(v - (albedo(g.xOfCol(c), g.yOfRow(r)) + offset)));
+    }
+  }
+  return worst;
+}
+
+}  // namespace
+
+TEST(OrthoTexture, DrapesTheImageOnALevelGroundExactly) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  const int written = t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  int known = 0;
+  // 6.2 m: the bottom image row; 30 m: max_range_m. Measured worst 0.20 grey (bilinear sampling of
+  // the image of a 2 m / 1.5 m wave: the texel is smaller than the far pixels).
+  const double worst = worstError(t, 7.0, 29.0, 0.0, &known);
+  // The error is the image's bilinear interpolation, growing with the ground a pixel spans.
+  // Measured worst per band: 7-12 m 0.098, 10-15 0.18, 15-20 0.45, 20-25 0.79, 25-30 2.0 grey.
+  const double bands[][3] = {{7.0, 12.0, 0.2}, {10.0, 15.0, 0.36}, {15.0, 20.0, 0.9}, {20.0, 25.0, 1.6}};
+  for (const auto& b : bands) {
+    int k = 0;
+    const double e = worstError(t, b[0], b[1], 0.0, &k);
+    std::printf("[ ortho ] %.0f-%.0f m: worst %.3f grey\n", b[0], b[1], e);
+    EXPECT_LT(e, b[2]) << b[0];
+  }
+  std::printf("[ ortho ] %d texels written, %d in the 7-29 m road strip, worst |error| %.3f grey\n", written, known, worst);
+  EXPECT_EQ(known, 221 * 61);
+  EXPECT_LT(worst, 3.0);
+  int none = 0;
+  worstError(t, 31.0, 40.0, 0.0, &none);  // beyond max_range_m
+  EXPECT_EQ(none, 0);
+  worstError(t, 0.0, 5.8, 0.0, &none);  // below the image
+  EXPECT_EQ(none, 0);
+  EXPECT_GT(t.tileCount(), 0u);
+  EXPECT_EQ(t.memoryBytes(), t.tileCount() * 256u * 256u * 9u);
+}
+
+TEST(OrthoTexture, ChainsTheExposureToTheFirstFrame) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  // Frame 2: the same view, exposure x1.5 + 10 (L_2 = 1.5 L_1 + 10); frame 3: x0.8 - 4 on top.
+  t.update(map, w, image(camera(0.0), 1.5, 10.0), rig(), camera(0.0), {1.5, 10.0});
+  EXPECT_NEAR(t.toReference().gain, 1.0 / 1.5, 1e-12);
+  EXPECT_NEAR(t.toReference().bias_grey, -10.0 / 1.5, 1e-12);
+  t.update(map, w, image(camera(0.0), 1.2, 4.0), rig(), camera(0.0), {0.8, -4.0});  // 0.8 * (1.5 L + 10) - 4
+  int known = 0;
+  EXPECT_LT(worstError(t, 7.0, 15.0, 0.0, &known), 0.4);
+  // Without the chain, the same images would move the texture by tens of grey levels.
+  sgd::OrthoTexture unchained;
+  unchained.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  unchained.update(map, w, image(camera(0.0), 1.5, 10.0), rig(), camera(0.0), sgd::PhotometricParams());
+  EXPECT_GT(worstError(unchained, 7.0, 29.0, 0.0, &known), 30.0);
+  // An implausible step is not chained.
+  t.update(map, w, image(camera(0.0), 1.2, 4.0), rig(), camera(0.0), {std::nan(""), 0.0});
+  EXPECT_NEAR(t.toReference().gain, 1.0 / 1.2, 1e-12);
+}
+
+TEST(OrthoTexture, KeepsTheBestResolvedView) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  // 5 m further the ground 11-35 m is seen closer; this image says +20 grey (a different scene).
+  t.update(map, w, image(camera(5.0), 1.0, 0.0, 20.0), rig(), camera(5.0), sgd::PhotometricParams());
+  int known = 0;
+  EXPECT_LT(worstError(t, 7.0, 10.0, 0.0, &known), 0.4) << "not seen from x = 5: the first view stays";
+  EXPECT_GT(known, 1000);
+  EXPECT_LT(worstError(t, 13.0, 20.0, 20.0, &known), 0.4) << "seen 5 m closer: replaced";
+  // Back at x = 0 (a worse view of everything): nothing changes.
+  t.update(map, w, image(camera(0.0), 1.0, 0.0, -50.0), rig(), camera(0.0), sgd::PhotometricParams());
+  EXPECT_LT(worstError(t, 13.0, 20.0, 20.0, &known), 0.4);
+  // The same view again is averaged: (20 + 30) / 2.
+  t.update(map, w, image(camera(5.0), 1.0, 0.0, 30.0), rig(), camera(5.0), sgd::PhotometricParams());
+  EXPECT_LT(worstError(t, 13.0, 20.0, 25.0, &known), 0.4);
+}
+
+TEST(OrthoTexture, LeavesObstacleCellsAndUnknownHeightsOut) {
+  sgd::GroundGrid w;
+  sgd::ElevationMap map = levelMap(&w);
+  // An obstacle mark at the vertex (10, 0) and a hole in the map at (15, 1).
+  std::vector<uint8_t> hit(static_cast<size_t>(w.vertexCount()), 0), ground(hit.size(), 0);
+  const int obstacle_v = w.index(static_cast<int>(std::lround((0.0 - w.y0()) / 0.5)), static_cast<int>(std::lround(10.0 / 0.5)));
+  hit[static_cast<size_t>(obstacle_v)] = 1;
+  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Constant(w.vertexCount(), std::nan("")), 0);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  int known = 0;
+  worstError(t, 9.6, 10.4, 0.0, &known, -0.4, 0.4);  // the four squares around the marked vertex
+  EXPECT_EQ(known, 0);
+  EXPECT_LT(worstError(t, 8.0, 9.4, 0.0, &known, -0.4, 0.4), 0.4);
+  EXPECT_GT(known, 0);
+  // A map with one unknown vertex (15, 1): the four squares around it are not textured.
+  sgd::ElevationMap holed;
+  std::vector<uint8_t> update(static_cast<size_t>(w.vertexCount()), 1);
+  update[static_cast<size_t>(w.index(static_cast<int>(std::lround((1.0 - w.y0()) / 0.5)), 30))] = 0;
+  const int n = w.vertexCount();
+  holed.fuse(w, Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 1e4), update, 0);
+  sgd::OrthoTexture h;
+  h.update(holed, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  const sgd::GroundGrid hole = sgd::GroundGrid::covering(14.6, 15.4, 0.6, 1.4, 0.1);
+  const cv::Mat m = h.sample(hole);
+  EXPECT_EQ(cv::countNonZero(m == m), 0);  // all NaN
+  EXPECT_LT(worstError(h, 10.0, 14.0, 0.0, &known), 0.4);
+}
+
+TEST(OrthoTexture, SamplesCellsAsTheMeanOfTheirTexels) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  const sgd::GroundGrid cells = sgd::GroundGrid::covering(10.0, 12.0, -1.0, 1.0, 0.5);
+  const sgd::GroundGrid texels = sgd::GroundGrid::covering(9.8, 12.2, -1.2, 1.2, 0.1);
+  const cv::Mat c = t.sample(cells), x = t.sample(texels);
+  for (int r = 0; r < cells.rows; ++r) {
+    for (int k = 0; k < cells.cols; ++k) {
+      double sum = 0.0;
+      const int tr = static_cast<int>(std::lround((cells.yOfRow(r) - texels.y0()) / 0.1));
+      const int tc = static_cast<int>(std::lround((cells.xOfCol(k) - texels.x0()) / 0.1));
+      for (int a = -2; a <= 2; ++a)
+        for (int b = -2; b <= 2; ++b) sum += x.at<float>(tr + a, tc + b);
+      EXPECT_NEAR(c.at<float>(r, k), sum / 25.0, 1e-3);
+    }
+  }
+  // The whole texture: its bounds hold every known texel, one texel of margin is unknown.
+  sgd::GroundGrid g;
+  const cv::Mat all = t.raster(&g);
+  EXPECT_DOUBLE_EQ(g.resolution_m, 0.1);
+  EXPECT_EQ(all.rows, g.rows);
+  EXPECT_EQ(all.cols, g.cols);
+  // Every texel seen (about 6.2-30 m ahead, inside the image) and nothing else: the first and last
+  // rows and columns hold known texels.
+  EXPECT_GT(cv::countNonZero(all.row(0) == all.row(0)), 0);
+  EXPECT_GT(cv::countNonZero(all.row(all.rows - 1) == all.row(all.rows - 1)), 0);
+  EXPECT_GT(cv::countNonZero(all.col(0) == all.col(0)), 0);
+  EXPECT_GT(cv::countNonZero(all.col(all.cols - 1) == all.col(all.cols - 1)), 0);
+  EXPECT_NEAR(g.x0(), 6.2, 0.15);
+  EXPECT_NEAR(g.x0() + (g.cols - 1) * 0.1, 30.0, 0.15);
+  t.clear();
+  EXPECT_EQ(t.tileCount(), 0u);
+  EXPECT_EQ(t.knownBounds().vertexCount(), 0);
+}
+
+TEST(OrthoTexture, CopiesShareTilesUntilWritten) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  const sgd::OrthoTexture copy = t;  // what a reader on another thread holds
+  t.update(map, w, image(camera(5.0), 1.0, 0.0, 20.0), rig(), camera(5.0), sgd::PhotometricParams());
+  int known = 0;
+  EXPECT_LT(worstError(copy, 13.0, 15.0, 0.0, &known), 0.4) << "the copy keeps the first frame's texture";
+  EXPECT_LT(worstError(t, 13.0, 20.0, 20.0, &known), 0.4);
+  EXPECT_EQ(copy.tileCount(), t.tileCount());
+}
+
+TEST(OrthoTexture, EvictsFarTiles) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTextureOptions o;
+  o.keep_radius_m = 50.0;
+  sgd::OrthoTexture t(o);
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  const size_t tiles = t.tileCount();
+  EXPECT_EQ(t.evictFarFrom(0.0, 0.0), 0);
+  EXPECT_EQ(t.evictFarFrom(200.0, 0.0), static_cast<int>(tiles));
+  EXPECT_EQ(t.tileCount(), 0u);
+}
+
+TEST(OrthoTexture, RefusesBadOptionsAndImages) {
+  sgd::OrthoTextureOptions o;
+  std::string why;
+  EXPECT_TRUE(o.isValid(&why));
+  o.resolution_m = 0.0;
+  EXPECT_FALSE(o.isValid(&why));
+  EXPECT_EQ(why, "resolution_m must be in 0.01..10");
+  o = sgd::OrthoTextureOptions();
+  o.max_range_m = 0.5;
+  EXPECT_FALSE(o.isValid(&why));
+  o = sgd::OrthoTextureOptions();
+  o.better_view_ratio = 1.0;
+  EXPECT_FALSE(o.isValid(&why));
+  EXPECT_THROW(sgd::OrthoTexture{o}, std::invalid_argument);
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  cv::Mat u8(370, 1200, CV_8U, cv::Scalar(100));
+  EXPECT_THROW(t.update(map, w, u8, rig(), camera(0.0), sgd::PhotometricParams()), std::invalid_argument);
+  sgd::OrthoTextureOptions off;
+  off.enabled = false;
+  sgd::OrthoTexture disabled(off);
+  EXPECT_EQ(disabled.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams()), 0);
+  EXPECT_EQ(disabled.tileCount(), 0u);
+}
