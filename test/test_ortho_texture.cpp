@@ -89,8 +89,7 @@ TEST(OrthoTexture, DrapesTheImageOnALevelGroundExactly) {
   sgd::OrthoTexture t;
   const int written = t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
   int known = 0;
-  // 6.2 m: the bottom image row; 30 m: max_range_m. Measured worst 0.20 grey (bilinear sampling of
-  // the image of a 2 m / 1.5 m wave: the texel is smaller than the far pixels).
+  // 6.2 m: the bottom image row; 30 m: max_range_m.
   const double worst = worstError(t, 7.0, 29.0, 0.0, &known);
   // The error is the image's bilinear interpolation, growing with the ground a pixel spans.
   // Measured worst per band: 7-12 m 0.098, 10-15 0.18, 15-20 0.45, 20-25 0.79, 25-30 2.0 grey.
@@ -201,7 +200,8 @@ TEST(OrthoTexture, SamplesCellsAsTheMeanOfTheirTexels) {
       EXPECT_NEAR(c.at<float>(r, k), sum / 25.0, 1e-3);
     }
   }
-  // The whole texture: its bounds hold every known texel, one texel of margin is unknown.
+  // The whole texture: its bounds are those of the known texels (the first and last rows and
+  // columns hold some).
   sgd::GroundGrid g;
   const cv::Mat all = t.raster(&g);
   EXPECT_DOUBLE_EQ(g.resolution_m, 0.1);
@@ -231,6 +231,40 @@ TEST(OrthoTexture, CopiesShareTilesUntilWritten) {
   EXPECT_LT(worstError(copy, 13.0, 15.0, 0.0, &known), 0.4) << "the copy keeps the first frame's texture";
   EXPECT_LT(worstError(t, 13.0, 20.0, 20.0, &known), 0.4);
   EXPECT_EQ(copy.tileCount(), t.tileCount());
+}
+
+TEST(OrthoTexture, LeavesBackFacingGroundOut) {
+  // Level to x = 10 m, then a drop of 2 m per metre: its face looks away from the camera.
+  const sgd::GroundGrid w = sgd::GroundGrid::covering(0.0, 60.0, -20.0, 20.0, 0.5);
+  Eigen::VectorXd z(w.vertexCount());
+  for (int v = 0; v < w.vertexCount(); ++v) z[v] = std::min(0.0, -2.0 * (w.position(v).x() - 10.0));
+  sgd::ElevationMap map;
+  const int n = w.vertexCount();
+  map.fuse(w, z, Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 1e4), std::vector<uint8_t>(static_cast<size_t>(n), 1), 0);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  int known = 0;
+  worstError(t, 10.1, 14.0, 0.0, &known);
+  EXPECT_EQ(known, 0);
+  EXPECT_LT(worstError(t, 7.0, 9.9, 0.0, &known), 0.4);
+  EXPECT_GT(known, 1000);
+}
+
+TEST(OrthoTexture, CoarsensALargeRaster) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::OrthoTexture t;
+  t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
+  sgd::GroundGrid full, coarse;
+  const cv::Mat a = t.raster(&full), b = t.raster(&coarse, 20000);
+  EXPECT_DOUBLE_EQ(full.resolution_m, 0.1);
+  EXPECT_GT(static_cast<long long>(a.rows) * a.cols, 20000);
+  EXPECT_LE(static_cast<long long>(b.rows) * b.cols, 20000);
+  EXPECT_GT(static_cast<long long>(b.rows) * b.cols, 5000);
+  const double f = coarse.resolution_m / 0.1;
+  EXPECT_NEAR(f, std::round(f), 1e-9);
+  EXPECT_GE(f, 2.0);
+  EXPECT_EQ(cv::countNonZero(b == b) > 0, true);
 }
 
 TEST(OrthoTexture, EvictsFarTiles) {

@@ -12,14 +12,16 @@
 /// and no obstacle mark is placed on the surface (piecewise-linear, the mesh's triangles), projected
 /// into the left image and sampled bilinearly. Grey levels are brought to the first frame's
 /// exposure by chaining the estimated gain/bias between consecutive left images, so the mosaic has
-/// no seams where the camera's exposure changed. A texel keeps the best-resolved view: a view that
-/// covers more image pixels per texel (closer, less grazing) by `better_view_ratio` replaces the
-/// stored value; views of about the same resolution are averaged (the last `max_average_views`);
-/// worse views are ignored. For a vehicle driving forward every texel is therefore taken from the
+/// no seams where the camera's exposure changed (after a re-initialized frame the link is taken as
+/// identity, so a seam can appear there). A texel keeps the best-resolved view: a view that covers
+/// more image pixels per texel (closer, less grazing) by `better_view_ratio` replaces the stored
+/// value; views of about the same resolution are averaged (a running mean whose count is capped at
+/// `max_average_views`, so newer views keep some weight); worse views and back-facing triangles are
+/// ignored. Terrain hidden behind nearer terrain is not detected (obstacle cells are left out). For a vehicle driving forward every texel is therefore taken from the
 /// last frames that saw it, near the bottom of the image.
 ///
-/// Copies share their tiles (copy on write): a copy made after every frame for readers on other
-/// threads (the ROS node's services) costs only the tiles the next update() touches.
+/// Copies share their tiles (copy on write, LatticeTiles): a copy made after every frame for readers
+/// on other threads (the ROS node's services) costs only the tiles the next update() touches.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -31,6 +33,7 @@
 
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/GroundGrid.hpp"
+#include "stereo_ground_dem/LatticeTiles.hpp"
 #include "stereo_ground_dem/PhotometricParams.hpp"
 #include "stereo_ground_dem/StereoRig.hpp"
 
@@ -41,8 +44,8 @@ struct OrthoTextureOptions {
   double resolution_m = 0.1;         ///< texel size [m]
   int tile_size = 256;               ///< texels per tile side
   double keep_radius_m = 200.0;      ///< tiles whose centre is farther from the vehicle are evicted [m]
-  double min_range_m = 1.0;          ///< texels nearer to the camera (along its axis) are not taken [m]
-  double max_range_m = 30.0;         ///< ... nor farther ones [m]
+  double min_range_m = 1.0;          ///< texels nearer to the camera (depth along its optical axis) are not taken [m]
+  double max_range_m = 30.0;         ///< ... nor deeper ones [m]
   double min_pixels_per_texel = 0.3; ///< views coarser than this (image px per texel side) are not taken
   double better_view_ratio = 1.25;   ///< a view this much better resolved replaces the stored one (> 1)
   int max_average_views = 8;         ///< views of a similar resolution averaged (a running mean of at most this many)
@@ -64,15 +67,18 @@ class OrthoTexture {
   int update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left, const StereoRig& rig,
              const Eigen::Isometry3d& ground_T_camera, const PhotometricParams& left_vs_previous);
 
-  /// Grey level [first frame's exposure, 8-bit units] at the vertices of `grid` (CV_32F rows x
-  /// cols, NaN unknown): the mean of the known texels within half a cell of each vertex (the texel
-  /// itself at the texel resolution).
+  /// Grey level [first frame's exposure, 0..255] at the vertices of `grid` (CV_32F rows x cols,
+  /// NaN unknown): the mean of the known texels within half a cell of each vertex (the texel itself
+  /// at the texel resolution; through cells wider than 5 texels, 5 x 5 of them evenly spaced).
   cv::Mat sample(const GroundGrid& grid) const;
 
-  /// The texel lattice's bounding grid of every known texel (empty grid if none).
-  GroundGrid knownBounds() const;
-  /// The whole known texture: knownBounds() and sample() of it.
-  cv::Mat raster(GroundGrid* grid) const;
+  /// The bounding grid of every known texel on the lattice of factor * resolution_m (empty grid if
+  /// none). Throws std::length_error beyond GroundGrid's limits.
+  GroundGrid knownBounds(int factor = 1) const;
+  /// The whole known texture (sample() of knownBounds(f)), at the texel resolution, or coarsened by
+  /// the smallest integer f that keeps it within max_texels (16 M: 64 MB of floats); `grid`
+  /// receives the raster's grid.
+  cv::Mat raster(GroundGrid* grid, long long max_texels = 16LL << 20) const;
 
   /// Removes the tiles whose centre is farther than keep_radius_m from (x, y); returns how many.
   int evictFarFrom(double x, double y);
@@ -86,16 +92,15 @@ class OrthoTexture {
 
  private:
   struct Tile {
+    explicit Tile(size_t n);
     std::vector<float> value;    ///< grey [reference exposure], NaN unknown
     std::vector<float> quality;  ///< image pixels per texel side of the stored view
-    std::vector<uint8_t> views;  ///< views averaged into value
+    std::vector<uint8_t> views;  ///< views averaged into value (0: unknown)
   };
-  using Key = std::int64_t;
-  Tile* tileFor(long long ti, long long tj, bool create, size_t* index);
-  const Tile* tileFor(long long ti, long long tj, size_t* index) const;
+  bool knownExtent(long long* i0, long long* i1, long long* j0, long long* j1) const;
 
   OrthoTextureOptions options_;
-  std::unordered_map<Key, std::shared_ptr<Tile>> tiles_;  ///< shared between copies until written
+  LatticeTiles<Tile> tiles_;
   PhotometricParams to_reference_;
   bool has_reference_ = false;
 };

@@ -4,18 +4,12 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace stereo_ground_dem {
 
 namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-long long floorDiv(long long a, long long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
-
-std::int64_t tileKey(long long tile_row, long long tile_col) {
-  return static_cast<std::int64_t>((static_cast<std::uint64_t>(static_cast<std::uint32_t>(tile_row)) << 32) |
-                                   static_cast<std::uint32_t>(tile_col));
-}
 
 /// Bilinear sample of a CV_32F image at (u, v), inside by the caller's check.
 float bilinear(const cv::Mat& img, double u, double v) {
@@ -43,39 +37,13 @@ bool OrthoTextureOptions::isValid(std::string* why) const {
   return true;
 }
 
-OrthoTexture::OrthoTexture(const OrthoTextureOptions& options) : options_(options) {
+OrthoTexture::OrthoTexture(const OrthoTextureOptions& options)
+    : options_(options), tiles_(options.tile_size, options.resolution_m) {
   std::string why;
   if (!options_.isValid(&why)) throw std::invalid_argument("OrthoTextureOptions: " + why);
 }
 
-OrthoTexture::Tile* OrthoTexture::tileFor(long long ti, long long tj, bool create, size_t* index) {
-  const long long ts = options_.tile_size;
-  const long long tr = floorDiv(ti, ts), tc = floorDiv(tj, ts);
-  *index = static_cast<size_t>((ti - tr * ts) * ts + (tj - tc * ts));
-  const Key k = tileKey(tr, tc);
-  auto it = tiles_.find(k);
-  if (it != tiles_.end()) {
-    // Written through: a tile another copy still holds is cloned first. use_count() can only drop
-    // meanwhile (copies are made on this object's thread), which at worst clones once too often.
-    if (it->second.use_count() > 1) it->second = std::make_shared<Tile>(*it->second);
-    return it->second.get();
-  }
-  if (!create) return nullptr;
-  auto t = std::make_shared<Tile>();
-  const size_t n = static_cast<size_t>(ts * ts);
-  t->value.assign(n, kNaN);
-  t->quality.assign(n, 0.0f);
-  t->views.assign(n, 0);
-  return tiles_.emplace(k, std::move(t)).first->second.get();
-}
-
-const OrthoTexture::Tile* OrthoTexture::tileFor(long long ti, long long tj, size_t* index) const {
-  const long long ts = options_.tile_size;
-  const long long tr = floorDiv(ti, ts), tc = floorDiv(tj, ts);
-  *index = static_cast<size_t>((ti - tr * ts) * ts + (tj - tc * ts));
-  const auto it = tiles_.find(tileKey(tr, tc));
-  return it == tiles_.end() ? nullptr : it->second.get();
-}
+OrthoTexture::Tile::Tile(size_t n) : value(n, kNaN), quality(n, 0.0f), views(n, 0) {}
 
 int OrthoTexture::update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left, const StereoRig& rig,
                          const Eigen::Isometry3d& ground_T_camera, const PhotometricParams& left_vs_previous) {
@@ -118,11 +86,10 @@ int OrthoTexture::update(const ElevationMap& map, const GroundGrid& window, cons
       // Quick reject: the square's centre far outside the range band (the square is < 1 m).
       const Eigen::Vector3d centre = R * Eigen::Vector3d(xc + 0.5 * R_m, yc + 0.5 * R_m, 0.25 * (z00 + z01 + z10 + z11)) + t;
       if (centre.z() < options_.min_range_m - 2.0 * R_m || centre.z() > options_.max_range_m + 2.0 * R_m) continue;
-      // Both triangles' unit normals in the camera frame (GroundGrid's split along (r,c)-(r+1,c+1)).
-      const Eigen::Vector3d na =
-          (R * Eigen::Vector3d(-(z01 - z00) / R_m, -(z11 - z01) / R_m, 1.0)).normalized();  // s >= t
-      const Eigen::Vector3d nb =
-          (R * Eigen::Vector3d(-(z11 - z10) / R_m, -(z10 - z00) / R_m, 1.0)).normalized();  // t > s
+      // Both triangles' normals N = (-dz/dx, -dz/dy, 1) in the camera frame (GroundGrid's split along
+      // (r,c)-(r+1,c+1)); not normalized: |N| is the surface area over a unit of ground area.
+      const Eigen::Vector3d na = R * Eigen::Vector3d(-(z01 - z00) / R_m, -(z11 - z01) / R_m, 1.0);  // s >= t
+      const Eigen::Vector3d nb = R * Eigen::Vector3d(-(z11 - z10) / R_m, -(z10 - z00) / R_m, 1.0);  // t > s
       const long long j_lo = static_cast<long long>(std::ceil(xc / res - 1e-6));
       const long long j_hi = static_cast<long long>(std::ceil((xc + R_m) / res - 1e-6)) - 1;
       const long long i_lo = static_cast<long long>(std::ceil(yc / res - 1e-6));
@@ -138,13 +105,18 @@ int OrthoTexture::update(const ElevationMap& map, const GroundGrid& window, cons
           const double iz = 1.0 / pc.z();
           const double u = rig.fx * pc.x() * iz + rig.cx, v = rig.fy * pc.y() * iz + rig.cy;
           if (!(u >= u_min && u <= u_max && v >= v_min && v <= v_max)) continue;
-          // Image pixels per texel side: sqrt(f^2 |n . X| / Z^3 * texel area).
-          const double q = std::sqrt(rig.fx * rig.fy * std::abs((upper ? nb : na).dot(pc)) * iz * iz * iz * texel_area);
+          // The surface faces the camera only when N . X < 0 (X: from the camera to the point); a
+          // back-facing triangle shows whatever hides it. (Terrain hidden by nearer terrain in front
+          // is not tested: obstacle cells are the only occluders left out.)
+          const double facing = -(upper ? nb : na).dot(pc);
+          if (!(facing > 0.0)) continue;
+          // Image pixels per texel side: sqrt(f^2 |N . X| / Z^3 * texel area).
+          const double q = std::sqrt(rig.fx * rig.fy * facing * iz * iz * iz * texel_area);
           if (q < min_q) continue;
-          const float value = static_cast<float>(gain_ref * bilinear(left, u, v) + bias_ref);
+          const float value = std::clamp(static_cast<float>(gain_ref * bilinear(left, u, v) + bias_ref), 0.0f, 255.0f);
           if (!std::isfinite(value)) continue;
           size_t k = 0;
-          Tile* tile = tileFor(i, j, true, &k);
+          Tile* tile = tiles_.find(i, j, &k, true);
           const float stored_q = tile->quality[k];
           if (tile->views[k] == 0 || q >= ratio * stored_q) {
             tile->value[k] = value;
@@ -170,18 +142,22 @@ cv::Mat OrthoTexture::sample(const GroundGrid& grid) const {
   cv::Mat out(grid.rows, grid.cols, CV_32F, cv::Scalar(kNaN));
   const double res = options_.resolution_m;
   // Texels within half a cell of the vertex: a box of h texels on each side (h = 0 at the texel
-  // resolution: the texel itself).
+  // resolution: the texel itself), read at most kBoxSamples x kBoxSamples (a stride through larger
+  // boxes: a whole-map window of 2 m cells would otherwise read every texel).
+  constexpr int kBoxSamples = 5;
   const int h = std::abs(grid.resolution_m - res) < 1e-9 ? 0 : std::max(0, static_cast<int>(0.5 * grid.resolution_m / res + 1e-6));
+  const int stride = std::max(1, (2 * h + kBoxSamples) / kBoxSamples);
+  LatticeTiles<Tile>::Reader reader(tiles_);
   for (int r = 0; r < grid.rows; ++r) {
     const long long ic = std::llround(grid.yOfRow(r) / res);
     for (int c = 0; c < grid.cols; ++c) {
       const long long jc = std::llround(grid.xOfCol(c) / res);
       double sum = 0.0;
       int n = 0;
-      for (long long i = ic - h; i <= ic + h; ++i) {
-        for (long long j = jc - h; j <= jc + h; ++j) {
+      for (long long i = ic - h; i <= ic + h; i += stride) {
+        for (long long j = jc - h; j <= jc + h; j += stride) {
           size_t k = 0;
-          const Tile* tile = tileFor(i, j, &k);
+          const Tile* tile = reader.find(i, j, &k);
           if (!tile || tile->views[k] == 0) continue;
           sum += tile->value[k];
           ++n;
@@ -193,55 +169,65 @@ cv::Mat OrthoTexture::sample(const GroundGrid& grid) const {
   return out;
 }
 
-GroundGrid OrthoTexture::knownBounds() const {
-  GroundGrid g;
-  g.resolution_m = options_.resolution_m;
+bool OrthoTexture::knownExtent(long long* i0_out, long long* i1_out, long long* j0_out, long long* j1_out) const {
   long long i0 = std::numeric_limits<long long>::max(), j0 = i0, i1 = std::numeric_limits<long long>::min(), j1 = i1;
   const long long ts = options_.tile_size;
-  for (const auto& [key, tile] : tiles_) {
-    const long long tr = static_cast<std::int32_t>(static_cast<std::uint64_t>(key) >> 32);
-    const long long tc = static_cast<std::int32_t>(static_cast<std::uint64_t>(key) & 0xffffffffu);
+  tiles_.forEach([&](long long row0, long long col0, const Tile& tile) {
     for (long long a = 0; a < ts; ++a) {
       for (long long b = 0; b < ts; ++b) {
-        if (tile->views[static_cast<size_t>(a * ts + b)] == 0) continue;
-        i0 = std::min(i0, tr * ts + a);
-        i1 = std::max(i1, tr * ts + a);
-        j0 = std::min(j0, tc * ts + b);
-        j1 = std::max(j1, tc * ts + b);
+        if (tile.views[static_cast<size_t>(a * ts + b)] == 0) continue;
+        i0 = std::min(i0, row0 + a);
+        i1 = std::max(i1, row0 + a);
+        j0 = std::min(j0, col0 + b);
+        j1 = std::max(j1, col0 + b);
       }
     }
+  });
+  if (i1 < i0) return false;
+  *i0_out = i0;
+  *i1_out = i1;
+  *j0_out = j0;
+  *j1_out = j1;
+  return true;
+}
+
+GroundGrid OrthoTexture::knownBounds(int factor) const {
+  GroundGrid g;
+  g.resolution_m = factor * options_.resolution_m;
+  long long i0 = 0, i1 = 0, j0 = 0, j1 = 0;
+  if (factor < 1 || !knownExtent(&i0, &i1, &j0, &j1)) return g;
+  auto floorDiv = [](long long a, long long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); };
+  const long long r0 = floorDiv(i0, factor), r1 = floorDiv(i1, factor), c0 = floorDiv(j0, factor), c1 = floorDiv(j1, factor);
+  const long long rows = r1 - r0 + 1, cols = c1 - c0 + 1;
+  if (rows * cols > GroundGrid::kMaxVertices || std::max(std::llabs(r0), std::llabs(r1)) > GroundGrid::kMaxLatticeIndex ||
+      std::max(std::llabs(c0), std::llabs(c1)) > GroundGrid::kMaxLatticeIndex) {
+    throw std::length_error("OrthoTexture: the known texture spans " + std::to_string(rows) + " x " +
+                            std::to_string(cols) + " texels of " + std::to_string(g.resolution_m) +
+                            " m, beyond GroundGrid's limits");
   }
-  if (i1 < i0) return g;
-  g.row0 = static_cast<int>(i0);
-  g.col0 = static_cast<int>(j0);
-  g.rows = static_cast<int>(i1 - i0 + 1);
-  g.cols = static_cast<int>(j1 - j0 + 1);
+  g.row0 = static_cast<int>(r0);
+  g.col0 = static_cast<int>(c0);
+  g.rows = static_cast<int>(rows);
+  g.cols = static_cast<int>(cols);
   return g;
 }
 
-cv::Mat OrthoTexture::raster(GroundGrid* grid) const {
-  const GroundGrid g = knownBounds();
+cv::Mat OrthoTexture::raster(GroundGrid* grid, long long max_texels) const {
+  long long i0 = 0, i1 = 0, j0 = 0, j1 = 0;
+  GroundGrid g;
+  g.resolution_m = options_.resolution_m;
+  if (knownExtent(&i0, &i1, &j0, &j1)) {
+    // The smallest integer coarsening that keeps the raster within max_texels.
+    long long f = 1;
+    while (((i1 - i0) / f + 2) * ((j1 - j0) / f + 2) > std::max(1LL, max_texels)) ++f;
+    g = knownBounds(static_cast<int>(f));
+  }
   if (grid) *grid = g;
   if (g.vertexCount() == 0) return cv::Mat();
   return sample(g);
 }
 
-int OrthoTexture::evictFarFrom(double x, double y) {
-  const double side = options_.tile_size * options_.resolution_m;
-  int removed = 0;
-  for (auto it = tiles_.begin(); it != tiles_.end();) {
-    const long long tr = static_cast<std::int32_t>(static_cast<std::uint64_t>(it->first) >> 32);
-    const long long tc = static_cast<std::int32_t>(static_cast<std::uint64_t>(it->first) & 0xffffffffu);
-    const double cx = (tc + 0.5) * side, cy = (tr + 0.5) * side;
-    if (std::hypot(cx - x, cy - y) > options_.keep_radius_m) {
-      it = tiles_.erase(it);
-      ++removed;
-    } else {
-      ++it;
-    }
-  }
-  return removed;
-}
+int OrthoTexture::evictFarFrom(double x, double y) { return tiles_.evictFarFrom(x, y, options_.keep_radius_m); }
 
 void OrthoTexture::clear() {
   tiles_.clear();

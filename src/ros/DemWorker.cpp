@@ -19,12 +19,17 @@ DemWorker::DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const
       diagnostics_(diagnostics),
       logger_(logger),
       options_(options),
-      snapshot_(std::make_shared<MapSnapshot>()) {
-  if (ortho.enabled) {
-    OrthoTextureOptions o = ortho;
-    o.keep_radius_m = options.map.keep_radius_m;
-    ortho_ = std::make_unique<OrthoTexture>(o);
-  }
+      snapshot_(std::make_shared<MapSnapshot>()),
+      ortho_options_(ortho) {
+  restartOrtho(options.map.keep_radius_m);
+}
+
+void DemWorker::restartOrtho(double keep_radius_m) {
+  ortho_.reset();
+  if (!ortho_options_.enabled) return;
+  OrthoTextureOptions o = ortho_options_;
+  o.keep_radius_m = keep_radius_m;  // evicted with the map (map_keep_radius_m may have changed)
+  ortho_ = std::make_unique<OrthoTexture>(o);
 }
 
 DemWorker::~DemWorker() { stop(); }
@@ -99,6 +104,7 @@ void DemWorker::applyReset() {
   }
   if (recreate) {
     estimator_ = std::make_unique<IncrementalEstimator>(estimator_->rig(), options);
+    restartOrtho(options.map.keep_radius_m);
   } else if (reset && estimator_) {
     estimator_->reset();
   }
@@ -122,7 +128,6 @@ void DemWorker::process(StereoFrame& f) {
     if (estimator_) {
       diagnostics_.restarted("the camera calibration changed (camera_info P or size): starting a new map", true);
       publisher_.reset();
-      if (ortho_) ortho_->clear();
       trajectory_xy_.clear();
       fused_frames_ = 0;
       last_processed_stamp_s_ = -1.0;
@@ -137,6 +142,7 @@ void DemWorker::process(StereoFrame& f) {
     }
     try {
       estimator_ = std::make_unique<IncrementalEstimator>(f.rig, options);
+      restartOrtho(options.map.keep_radius_m);
     } catch (const std::exception& e) {
       estimator_.reset();
       diagnostics_.skipped(std::string("cannot start the estimator: ") + e.what());
@@ -213,7 +219,7 @@ void DemWorker::process(StereoFrame& f) {
   }
   record.latency_ms = (ros::Time::now() - f.stamp).toSec() * 1e3;
   record.map_tiles = map.tileCount();
-  record.map_memory_mb = map.memoryBytes() / 1048576.0;
+  record.map_memory_mb = (map.memoryBytes() + (ortho_ ? ortho_->memoryBytes() : 0)) / 1048576.0;
   diagnostics_.processed(record);
   ROS_DEBUG_NAMED(logger_, "frame %.3f: %s in %.1f ms, waited %.1f ms, %.1f ms in all", stamp_s, toString(fr.status),
                   fr.time_ms, record.wait_ms, (ros::WallTime::now() - start).toSec() * 1e3);

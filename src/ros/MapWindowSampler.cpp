@@ -85,7 +85,6 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
                 {"traversability", traversability},
                 {"obstacle", obstacle},
                 {"obstacle_height", map.layer(ElevationMap::Layer::kObstacleHeight, w)}};
-  if (ortho) out.layers.push_back({"intensity", ortho->sample(w)});
   if (s > 1) {
     out.grid = w.coarsened(s);
     for (GridLayer& l : out.layers) {
@@ -95,6 +94,8 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
       l.values = d;
     }
   }
+  // The intensity at the published cells directly (each the mean over its own, coarser cell).
+  if (ortho) out.layers.push_back({"intensity", ortho->sample(out.grid)});
   return out;
 }
 

@@ -75,7 +75,9 @@ class DemWorker {
   // processing thread only
   std::unique_ptr<IncrementalEstimator> estimator_;
   std::vector<Eigen::Vector2d> trajectory_xy_;
+  const OrthoTextureOptions ortho_options_;
   std::unique_ptr<OrthoTexture> ortho_;  ///< null when disabled; cleared with the map
+  void restartOrtho(double keep_radius_m);
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   double last_processed_stamp_s_ = -1.0;
