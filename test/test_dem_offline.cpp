@@ -69,7 +69,7 @@ TEST_F(DemOffline, SequenceModeOnTheBundledSample) {
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* f : {"dem.tif", "dem.yaml", "trajectory_kitti.txt", "trajectory_tum.txt", "timing.csv",
                         "variance.tif", "traversability.tif", "mesh.ply", "summary.txt", "dem_disparity_000000.png",
-                        "intensity.tif", "ortho.tif", "ortho.png"}) {
+                        "intensity.tif", "ortho.tif", "ortho.png", "residual.tif", "residual_outlier_rate.tif"}) {
     EXPECT_TRUE(exists(out + "/" + f)) << f;
   }
   // The ortho-texture: 4 frames of the KITTI road, 0.1 m texels, grey levels of a real road.

@@ -6,6 +6,9 @@
 #include <cmath>
 
 #include "stereo_ground_dem/OrthoTexture.hpp"
+#include "stereo_ground_dem/PhotometricResidualMap.hpp"
+
+#include <opencv2/imgproc.hpp>
 
 namespace sgd = stereo_ground_dem;
 
@@ -304,4 +307,63 @@ TEST(OrthoTexture, RefusesBadOptionsAndImages) {
   sgd::OrthoTexture disabled(off);
   EXPECT_EQ(disabled.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams()), 0);
   EXPECT_EQ(disabled.tileCount(), 0u);
+}
+
+// PhotometricResidualMap on the same exact views: the residual of a plane seen by a stereo pair
+// whose right image has its own gain and bias is the interpolation error only; a patch painted
+// into the next left image (something the ground does not explain) is flagged in its cells only.
+TEST(PhotometricResidualMap, ExactOnAPlaneAndFlagsWhatTheGroundDoesNotExplain) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  sgd::PhotometricResidualMap res(0.5);
+  Eigen::Isometry3d right_pose = camera(0.0);
+  right_pose.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
+  // L = 1.25 R + 5: the right image is (scene - 5) / 1.25.
+  const cv::Mat left = image(camera(0.0)), right = image(right_pose, 1.0 / 1.25, -5.0 / 1.25);
+  res.update(map, w, left, right, rig(), camera(0.0), {1.25, 5.0}, sgd::PhotometricParams());
+  const sgd::GroundGrid near = sgd::GroundGrid::covering(8.0, 15.0, -3.0, 3.0, 0.5);
+  cv::Mat r = res.layer(sgd::PhotometricResidualMap::Layer::kResidual, near);
+  double worst = 0.0;
+  cv::minMaxLoc(r, nullptr, &worst, nullptr, nullptr, r == r);
+  EXPECT_EQ(cv::countNonZero(r == r), near.vertexCount());
+  EXPECT_LT(worst, 0.06);  // measured 0.026 grey (bilinear interpolation)
+  std::printf("[ residual ] worst cell on the plane %.3f grey, frame median %.3f\n", worst, res.lastMedianResidual());
+  // The next frame, 1 m on: the left image has a bright square painted where the ground at
+  // x 11-12 m, y -0.5..0.5 m is seen (an object the ground does not explain).
+  Eigen::Isometry3d right1 = camera(1.0);
+  right1.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
+  cv::Mat left1 = image(camera(1.0));
+  const sgd::StereoRig k = rig();
+  auto pixel = [&](double x, double y) {
+    const Eigen::Vector3d p = camera(1.0).inverse() * Eigen::Vector3d(x, y, 0.0);
+    return cv::Point(static_cast<int>(k.fx * p.x() / p.z() + k.cx), static_cast<int>(k.fy * p.y() / p.z() + k.cy));
+  };
+  cv::rectangle(left1, cv::Rect(pixel(12.0, 0.5), pixel(11.0, -0.5)), cv::Scalar(250.0), cv::FILLED);
+  res.update(map, w, left1, image(right1, 1.0 / 1.25, -5.0 / 1.25), rig(), camera(1.0), {1.25, 5.0}, sgd::PhotometricParams());
+  const cv::Mat rate = res.layer(sgd::PhotometricResidualMap::Layer::kOutlierRate, near);
+  r = res.layer(sgd::PhotometricResidualMap::Layer::kResidual, near);
+  const cv::Mat obs = res.layer(sgd::PhotometricResidualMap::Layer::kObservations, near);
+  int flagged_inside = 0, flagged_outside = 0;
+  for (int v = 0; v < near.vertexCount(); ++v) {
+    const Eigen::Vector2d p = near.position(v);
+    const bool inside = p.x() > 11.2 && p.x() < 11.8 && std::abs(p.y()) < 0.3;
+    const bool outside = p.x() < 10.4 || p.x() > 12.6 || std::abs(p.y()) > 1.1;
+    const float f = rate.at<float>(near.rowOf(v), near.colOf(v));
+    EXPECT_EQ(obs.at<float>(near.rowOf(v), near.colOf(v)), 2.0f);
+    if (inside) flagged_inside += f == 0.5f;  // one outlier frame of two, update_weight 0.5
+    if (outside) flagged_outside += f != 0.0f;
+  }
+  EXPECT_EQ(flagged_inside, 1);  // the cell (11.5, 0), wholly inside the square
+  EXPECT_EQ(flagged_outside, 0);
+  // Options and inputs.
+  sgd::PhotometricResidualOptions o;
+  std::string why;
+  EXPECT_TRUE(o.isValid(&why));
+  o.update_weight = 0.0;
+  EXPECT_FALSE(o.isValid(&why));
+  EXPECT_EQ(why, "update_weight must be in (0, 1]");
+  EXPECT_THROW(sgd::PhotometricResidualMap(0.5, o), std::invalid_argument);
+  EXPECT_THROW(res.update(map, sgd::GroundGrid::covering(0, 10, 0, 10, 0.25), left, right, rig(), camera(0.0), {}, {}),
+               std::invalid_argument);
+  EXPECT_THROW(res.update(map, w, left, right(cv::Rect(0, 0, 100, 100)), rig(), camera(0.0), {}, {}), std::invalid_argument);
 }

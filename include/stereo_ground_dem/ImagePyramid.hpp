@@ -38,6 +38,14 @@ class ImagePyramid {
   /// Converts any accepted input to single-channel CV_32F grey levels (0..255):
   /// GreyConverter::toGrey with 16 significant bits and no minimum size.
   static cv::Mat toGrayFloat(const cv::Mat& image, ColorOrder order = ColorOrder::kBgr);
+  /// Bilinear sample of a CV_32F image at (u, v); the caller keeps 0 <= u < cols - 1, 0 <= v < rows - 1.
+  static float sampleBilinear(const cv::Mat& image, double u, double v) {
+    const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+    const float a = static_cast<float>(u - u0), b = static_cast<float>(v - v0);
+    const float* r0 = image.ptr<float>(v0) + u0;
+    const float* r1 = image.ptr<float>(v0 + 1) + u0;
+    return (1.0f - b) * ((1.0f - a) * r0[0] + a * r0[1]) + b * ((1.0f - a) * r1[0] + a * r1[1]);
+  }
 
   int levels() const { return static_cast<int>(levels_.size()); }
   const Level& level(int l) const { return levels_.at(static_cast<size_t>(l)); }

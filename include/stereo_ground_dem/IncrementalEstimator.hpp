@@ -165,6 +165,8 @@ class IncrementalEstimator {
   /// The grey left image (CV_32F, 8-bit units, input resolution) of the last frame that moved the
   /// pose on (initialized, tracked or recovered); empty before the first. What OrthoTexture drapes.
   cv::Mat lastLeftImage() const { return prev_left_ ? prev_left_->level(0).image : cv::Mat(); }
+  /// ... and its right image.
+  cv::Mat lastRightImage() const { return prev_right_ ? prev_right_->level(0).image : cv::Mat(); }
   ElevationMap& map() { return map_; }
   const Eigen::Isometry3d& groundTCamera0() const { return ground_T_camera0_; }
   const Eigen::Isometry3d& lastGroundTCamera() const { return ground_T_camera_; }

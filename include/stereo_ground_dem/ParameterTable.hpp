@@ -11,6 +11,7 @@
 #include "stereo_ground_dem/GreyConverter.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/OrthoTexture.hpp"
+#include "stereo_ground_dem/PhotometricResidualMap.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 
 namespace stereo_ground_dem {
@@ -21,6 +22,7 @@ struct PipelineOptions {
   TraversabilityOptions traversability = TraversabilityOptions::forCar();
   GreyConverterOptions input;  ///< image input: bit depth of 16-bit images, size limits
   OrthoTextureOptions ortho;   ///< the ortho-texture layer (its keep radius follows map_keep_radius_m)
+  PhotometricResidualOptions residual;  ///< the photometric-residual layers (keep radius: the map's)
 
   bool isValid(std::string* why) const;
 };

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+
+#include "stereo_ground_dem/ImagePyramid.hpp"
 #include <string>
 
 namespace stereo_ground_dem {
@@ -11,14 +13,6 @@ namespace stereo_ground_dem {
 namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-/// Bilinear sample of a CV_32F image at (u, v), inside by the caller's check.
-float bilinear(const cv::Mat& img, double u, double v) {
-  const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
-  const float a = static_cast<float>(u - u0), b = static_cast<float>(v - v0);
-  const float* r0 = img.ptr<float>(v0) + u0;
-  const float* r1 = img.ptr<float>(v0 + 1) + u0;
-  return (1.0f - b) * ((1.0f - a) * r0[0] + a * r0[1]) + b * ((1.0f - a) * r1[0] + a * r1[1]);
-}
 }  // namespace
 
 bool OrthoTextureOptions::isValid(std::string* why) const {
@@ -113,7 +107,7 @@ int OrthoTexture::update(const ElevationMap& map, const GroundGrid& window, cons
           // Image pixels per texel side: sqrt(f^2 |N . X| / Z^3 * texel area).
           const double q = std::sqrt(rig.fx * rig.fy * facing * iz * iz * iz * texel_area);
           if (q < min_q) continue;
-          const float value = std::clamp(static_cast<float>(gain_ref * bilinear(left, u, v) + bias_ref), 0.0f, 255.0f);
+          const float value = std::clamp(static_cast<float>(gain_ref * ImagePyramid::sampleBilinear(left, u, v) + bias_ref), 0.0f, 255.0f);
           if (!std::isfinite(value)) continue;
           size_t k = 0;
           Tile* tile = tiles_.find(i, j, &k, true);

@@ -29,6 +29,10 @@ bool PipelineOptions::isValid(std::string* why) const {
     if (why) *why = "ortho: " + w;
     return false;
   }
+  if (!residual.isValid(&w)) {
+    if (why) *why = "residual: " + w;
+    return false;
+  }
   return true;
 }
 
@@ -143,7 +147,12 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   // ortho-texture
   b("ortho_enabled", &o->ortho.enabled, "drape the left images onto the map (intensity layer, ortho.tif / ortho.png)");
   d("ortho_resolution_m", &o->ortho.resolution_m, "texel size of the ortho-texture [m]");
-  d("ortho_max_range_m", &o->ortho.max_range_m, "image pixels farther than this from the camera are not draped [m]");
+  d("ortho_max_range_m", &o->ortho.max_range_m, "image pixels deeper than this (along the optical axis) are not draped [m]");
+  // photometric residual
+  b("residual_enabled", &o->residual.enabled, "per-cell photometric residual and outlier rate layers");
+  d("residual_update_weight", &o->residual.update_weight, "weight of the newest frame in the residual layers' moving averages (0..1]");
+  d("residual_outlier_sigmas", &o->residual.outlier_sigmas, "a cell is an outlier when its residual exceeds this many robust sigmas of the frame's cells");
+  d("residual_min_outlier_grey", &o->residual.min_outlier_grey, "... and this many grey levels [grey]");
 }
 
 namespace {

@@ -59,6 +59,14 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
     GeoTiff::write(dir + "/intensity.tif", dem.intensity, dem.grid, "intensity");
     written.push_back("intensity.tif");
   }
+  if (!dem.residual.empty()) {
+    GeoTiff::write(dir + "/residual.tif", dem.residual, dem.grid, "residual");
+    written.push_back("residual.tif");
+  }
+  if (!dem.residual_outlier_rate.empty()) {
+    GeoTiff::write(dir + "/residual_outlier_rate.tif", dem.residual_outlier_rate, dem.grid, "residual_outlier_rate");
+    written.push_back("residual_outlier_rate.tif");
+  }
   if (!dem.ortho.empty()) {
     GeoTiff::write(dir + "/ortho.tif", dem.ortho, dem.ortho_grid, "intensity");
     written.push_back("ortho.tif");
@@ -66,7 +74,8 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
   DemMetadata meta = DemMetadata::fromGrid(dem.grid, dem.ground_T_camera0, layers);
   for (const auto& kv : dem.extra) meta.extra_strings[kv.first] = kv.second;
   // companion rasters on the same grid
-  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif", "obstacle_height.tif", "intensity.tif"}) {
+  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif", "obstacle_height.tif", "intensity.tif", "residual.tif",
+                        "residual_outlier_rate.tif"}) {
     if (std::find(written.begin(), written.end(), f) == written.end()) continue;
     std::string key = std::string(f).substr(0, std::string(f).find('.')) + "_file";
     meta.extra_strings[key] = f;

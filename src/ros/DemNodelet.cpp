@@ -168,7 +168,8 @@ void DemNodelet::onInit() {
                                           nh.resolveName("right/image_rect"), nh.resolveName("right/camera_info")};
   diagnostics_ = std::make_unique<DemDiagnostics>(logger, topics, options_.approximate_sync, options_.slop_s);
   publisher_ = std::make_unique<DemPublisher>(options_, pipeline_.traversability, logger);
-  worker_ = std::make_unique<DemWorker>(*publisher_, *diagnostics_, pipeline_.estimator, logger, pipeline_.ortho);
+  worker_ = std::make_unique<DemWorker>(*publisher_, *diagnostics_, pipeline_.estimator, logger, pipeline_.ortho,
+                                       pipeline_.residual);
   services_ = std::make_unique<DemServices>(*worker_, options_, pipeline_.traversability, getName());
 
   it_ = std::make_shared<image_transport::ImageTransport>(nh);

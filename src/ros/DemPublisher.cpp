@@ -208,7 +208,7 @@ void DemPublisher::publishLayers(const DemLayers& d, const std_msgs::Header& hea
 }
 
 std::string DemPublisher::publish(const FrameResult& fr, const ElevationMap& map, const ros::Time& stamp,
-                                  const std::string& camera_frame, const OrthoTexture* ortho) {
+                                  const std::string& camera_frame, const ExtraLayerSources& extra) {
   std::lock_guard<std::mutex> lock(publish_mutex_);
   if (shut_down_) return "";
   std_msgs::Header header;
@@ -224,14 +224,14 @@ std::string DemPublisher::publish(const FrameResult& fr, const ElevationMap& map
     const Eigen::Vector2d c = fr.ground_T_camera.translation().head<2>() + options_.local_map_forward_m * forward;
     const GroundGrid w = MapWindowSampler::window(map.options().resolution_m, c.x(), c.y(), options_.local_map_size_m,
                                                   options_.local_map_size_m);
-    publishLayers(s.sample(map, w, options_.global_map_max_cells, ortho), header, pub_dem_, pub_occupancy_, &pub_mesh_);
+    publishLayers(s.sample(map, w, options_.global_map_max_cells, extra), header, pub_dem_, pub_occupancy_, &pub_mesh_);
   }
   const GroundGrid known = map.knownBounds();
   const ros::WallTime now = ros::WallTime::now();
   if (options_.global_map_rate_hz > 0.0 && (now - last_global_publish_).toSec() >= 1.0 / options_.global_map_rate_hz &&
       anyGlobalSubscriber() && known.rows > 1 && known.cols > 1) {
     last_global_publish_ = now;
-    publishLayers(s.sample(map, known, options_.global_map_max_cells, ortho), header, pub_dem_global_, pub_occupancy_global_,
+    publishLayers(s.sample(map, known, options_.global_map_max_cells, extra), header, pub_dem_global_, pub_occupancy_global_,
                   nullptr);
   }
   std::ostringstream extent;

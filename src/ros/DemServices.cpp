@@ -62,7 +62,7 @@ bool DemServices::saveMap(SaveMap::Request& req, SaveMap::Response& res) {
     return true;
   }
   const MapWindowSampler sampler(traversability());
-  const DemLayers d = sampler.sample(*snap->map, snap->map->knownBounds(), 0, snap->ortho.get());
+  const DemLayers d = sampler.sample(*snap->map, snap->map->knownBounds(), 0, {snap->ortho.get(), snap->residual.get()});
   DemExport dem;
   dem.grid = d.grid;
   dem.elevation = *d.find("elevation");
@@ -71,6 +71,8 @@ bool DemServices::saveMap(SaveMap::Request& req, SaveMap::Response& res) {
   if (const cv::Mat* o = d.find("obstacle")) dem.obstacles = *o;
   if (const cv::Mat* o = d.find("obstacle_height")) dem.obstacle_height = *o;
   if (const cv::Mat* o = d.find("intensity")) dem.intensity = *o;
+  if (const cv::Mat* o = d.find("residual")) dem.residual = *o;
+  if (const cv::Mat* o = d.find("residual_outlier_rate")) dem.residual_outlier_rate = *o;
   if (snap->ortho) dem.ortho = snap->ortho->raster(&dem.ortho_grid);
   dem.ground_T_camera0 = snap->ground_T_camera0;
   dem.trajectory_xy = snap->trajectory_xy;
@@ -106,7 +108,8 @@ bool DemServices::getSubmap(GetSubmap::Request& req, GetSubmap::Response& res) {
   const ElevationMap& map = *snap->map;
   const GroundGrid w =
       MapWindowSampler::window(map.options().resolution_m, req.center_x, req.center_y, req.length_x, req.length_y);
-  DemLayers d = MapWindowSampler(traversability()).sample(map, w, options_.global_map_max_cells, snap->ortho.get());
+  DemLayers d = MapWindowSampler(traversability()).sample(map, w, options_.global_map_max_cells,
+                                                         {snap->ortho.get(), snap->residual.get()});
   if (!req.layers.empty()) {
     std::vector<GridLayer> chosen;
     std::vector<std::string> unknown;

@@ -14,22 +14,30 @@ bool sameRig(const StereoRig& a, const StereoRig& b) {
 }  // namespace
 
 DemWorker::DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
-                     const std::string& logger, const OrthoTextureOptions& ortho)
+                     const std::string& logger, const OrthoTextureOptions& ortho,
+                     const PhotometricResidualOptions& residual)
     : publisher_(publisher),
       diagnostics_(diagnostics),
       logger_(logger),
       options_(options),
       snapshot_(std::make_shared<MapSnapshot>()),
-      ortho_options_(ortho) {
-  restartOrtho(options.map.keep_radius_m);
-}
+      ortho_options_(ortho),
+      residual_options_(residual) {}
 
-void DemWorker::restartOrtho(double keep_radius_m) {
+void DemWorker::restartLayers(const IncrementalEstimatorOptions& options, double resolution_m) {
+  // evicted with the map (map_keep_radius_m may have changed)
   ortho_.reset();
-  if (!ortho_options_.enabled) return;
-  OrthoTextureOptions o = ortho_options_;
-  o.keep_radius_m = keep_radius_m;  // evicted with the map (map_keep_radius_m may have changed)
-  ortho_ = std::make_unique<OrthoTexture>(o);
+  if (ortho_options_.enabled) {
+    OrthoTextureOptions o = ortho_options_;
+    o.keep_radius_m = options.map.keep_radius_m;
+    ortho_ = std::make_unique<OrthoTexture>(o);
+  }
+  residual_.reset();
+  if (residual_options_.enabled) {
+    PhotometricResidualOptions o = residual_options_;
+    o.keep_radius_m = options.map.keep_radius_m;
+    residual_ = std::make_unique<PhotometricResidualMap>(resolution_m, o);
+  }
 }
 
 DemWorker::~DemWorker() { stop(); }
@@ -104,13 +112,14 @@ void DemWorker::applyReset() {
   }
   if (recreate) {
     estimator_ = std::make_unique<IncrementalEstimator>(estimator_->rig(), options);
-    restartOrtho(options.map.keep_radius_m);
+    restartLayers(options, estimator_->map().options().resolution_m);
   } else if (reset && estimator_) {
     estimator_->reset();
   }
   if (reset) {
     publisher_.reset();
     if (ortho_) ortho_->clear();
+    if (residual_) residual_->clear();
     trajectory_xy_.clear();
     fused_frames_ = 0;
     last_processed_stamp_s_ = -1.0;
@@ -142,7 +151,7 @@ void DemWorker::process(StereoFrame& f) {
     }
     try {
       estimator_ = std::make_unique<IncrementalEstimator>(f.rig, options);
-      restartOrtho(options.map.keep_radius_m);
+      restartLayers(options, estimator_->map().options().resolution_m);
     } catch (const std::exception& e) {
       estimator_.reset();
       diagnostics_.skipped(std::string("cannot start the estimator: ") + e.what());
@@ -197,7 +206,16 @@ void DemWorker::process(StereoFrame& f) {
         diagnostics_.problem(std::string("ortho-texture: ") + e.what(), false);
       }
     }
-    record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame, ortho_.get());
+    if (residual_ && fr.status != FrameStatus::kFailed) {  // where the surface does not explain the images
+      try {
+        residual_->update(map, fr.window, estimator_->lastLeftImage(), estimator_->lastRightImage(), estimator_->rig(),
+                          fr.ground_T_camera, fr.photometric[0], fr.photometric[1]);
+        residual_->evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
+      } catch (const std::exception& e) {  // never expected; never fatal either
+        diagnostics_.problem(std::string("photometric residual: ") + e.what(), false);
+      }
+    }
+    record.map_extent = publisher_.publish(fr, map, f.stamp, f.camera_frame, {ortho_.get(), residual_.get()});
     if (fr.status != FrameStatus::kFailed) {  // a failed frame's pose is only the prediction
       try {
         record.attitude = attitude_.estimate(map, fr.ground_T_camera);
@@ -210,6 +228,7 @@ void DemWorker::process(StereoFrame& f) {
     auto snap = std::make_shared<MapSnapshot>();
     snap->map = std::make_shared<const ElevationMap>(map);
     if (ortho_) snap->ortho = std::make_shared<const OrthoTexture>(*ortho_);
+    if (residual_) snap->residual = std::make_shared<const PhotometricResidualMap>(*residual_);
     snap->ground_T_camera0 = estimator_->groundTCamera0();
     snap->trajectory_xy = trajectory_xy_;
     snap->stamp = f.stamp;
@@ -219,7 +238,8 @@ void DemWorker::process(StereoFrame& f) {
   }
   record.latency_ms = (ros::Time::now() - f.stamp).toSec() * 1e3;
   record.map_tiles = map.tileCount();
-  record.map_memory_mb = (map.memoryBytes() + (ortho_ ? ortho_->memoryBytes() : 0)) / 1048576.0;
+  record.map_memory_mb =
+      (map.memoryBytes() + (ortho_ ? ortho_->memoryBytes() : 0) + (residual_ ? residual_->memoryBytes() : 0)) / 1048576.0;
   diagnostics_.processed(record);
   ROS_DEBUG_NAMED(logger_, "frame %.3f: %s in %.1f ms, waited %.1f ms, %.1f ms in all", stamp_s, toString(fr.status),
                   fr.time_ms, record.wait_ms, (ros::WallTime::now() - start).toSec() * 1e3);

@@ -44,7 +44,7 @@ int MapWindowSampler::stride(int rows, int cols, int max_cells) {
 }
 
 DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& requested, int max_cells,
-                                   const OrthoTexture* ortho) const {
+                                   const ExtraLayerSources& extra) const {
   GroundGrid w = requested;
   const int s = stride(w.rows, w.cols, max_cells);
   if (s > 1) {  // align the window to the stride so that the decimated grid is on a lattice too
@@ -85,6 +85,11 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
                 {"traversability", traversability},
                 {"obstacle", obstacle},
                 {"obstacle_height", map.layer(ElevationMap::Layer::kObstacleHeight, w)}};
+  if (extra.residual) {
+    out.layers.push_back({"residual", extra.residual->layer(PhotometricResidualMap::Layer::kResidual, w)});
+    out.layers.push_back(
+        {"residual_outlier_rate", extra.residual->layer(PhotometricResidualMap::Layer::kOutlierRate, w)});
+  }
   if (s > 1) {
     out.grid = w.coarsened(s);
     for (GridLayer& l : out.layers) {
@@ -95,7 +100,7 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
     }
   }
   // The intensity at the published cells directly (each the mean over its own, coarser cell).
-  if (ortho) out.layers.push_back({"intensity", ortho->sample(out.grid)});
+  if (extra.ortho) out.layers.push_back({"intensity", extra.ortho->sample(out.grid)});
   return out;
 }
 

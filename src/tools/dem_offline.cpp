@@ -33,6 +33,7 @@
 #include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/OrthoTexture.hpp"
+#include "stereo_ground_dem/PhotometricResidualMap.hpp"
 #include "stereo_ground_dem/ParameterTable.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
@@ -288,10 +289,13 @@ int runSequence(const Args& a) {
   OrthoTextureOptions ortho_options = o.ortho;
   ortho_options.keep_radius_m = o.estimator.map.keep_radius_m;
   OrthoTexture ortho(ortho_options);
+  PhotometricResidualOptions residual_options = o.residual;
+  residual_options.keep_radius_m = o.estimator.map.keep_radius_m;
+  PhotometricResidualMap residual(est.map().options().resolution_m, residual_options);
   constexpr double kDeg = 180.0 / M_PI;
   GreyConverter conv(o.input);
   std::ofstream timing(a.out + "/timing.csv");
-  timing << "frame,ms,pyramid_ms,prealign_ms,obstacle_ms,joint_ms,other_ms,evaluations,ortho_ms\n";
+  timing << "frame,ms,pyramid_ms,prealign_ms,obstacle_ms,joint_ms,other_ms,evaluations,ortho_ms,residual_ms\n";
   std::ofstream frames(a.out + "/frames.csv");
   frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
@@ -347,11 +351,19 @@ int runSequence(const Args& a) {
       ortho.evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
       ortho_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     }
+    double residual_ms = 0.0;
+    if (good && residual_options.enabled) {
+      const auto t0 = std::chrono::steady_clock::now();
+      residual.update(est.map(), fr.window, est.lastLeftImage(), est.lastRightImage(), seq.rig(), fr.ground_T_camera,
+                      fr.photometric[0], fr.photometric[1]);
+      residual.evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
+      residual_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
     int evaluations = 0;
     for (const AlignmentReport& r : fr.reports) evaluations += r.evaluations;
     timing << i << "," << fr.time_ms << "," << fr.pyramid_ms << "," << fr.prealign_ms << "," << fr.obstacle_ms << ","
            << fr.joint_ms << "," << fr.time_ms - fr.pyramid_ms - fr.prealign_ms - fr.obstacle_ms - fr.joint_ms << ","
-           << evaluations << "," << ortho_ms << "\n";
+           << evaluations << "," << ortho_ms << "," << residual_ms << "\n";
     // The camera above the local ground (the fused map around it), for mapped frames.
     const GroundAttitudeEstimate attitude =
         good ? ground_attitude.estimate(est.map(), fr.ground_T_camera) : GroundAttitudeEstimate();
@@ -403,6 +415,10 @@ int runSequence(const Args& a) {
   dem.obstacles = map.layer(ElevationMap::Layer::kObstacle, dem.grid);
   dem.obstacle_height = map.layer(ElevationMap::Layer::kObstacleHeight, dem.grid);
   markObstacles(&dem);
+  if (residual_options.enabled) {
+    dem.residual = residual.layer(PhotometricResidualMap::Layer::kResidual, dem.grid);
+    dem.residual_outlier_rate = residual.layer(PhotometricResidualMap::Layer::kOutlierRate, dem.grid);
+  }
   if (ortho_options.enabled) {
     dem.intensity = ortho.sample(dem.grid);
     dem.ortho = ortho.raster(&dem.ortho_grid);
@@ -419,7 +435,7 @@ int runSequence(const Args& a) {
               "peak memory %.0f MB\n",
               n, mapped, failures, rejected, unreadable, mean, median, peakMemoryMb());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
-              "mesh.ply, obstacles.tif, obstacle_height.tif, intensity.tif, ortho.tif, ortho.png, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
+              "mesh.ply, obstacles.tif, obstacle_height.tif, intensity.tif, ortho.tif, ortho.png, residual.tif, residual_outlier_rate.tif, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
               "trajectory_tum.txt, timing.csv, frames.csv, summary.txt}\n",
               a.out.c_str(), disparity_name.c_str());
   return 0;

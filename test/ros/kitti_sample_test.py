@@ -24,7 +24,7 @@ from stereo_ground_dem.srv import GetSubmap, SaveMap  # noqa: E402
 POSITION_STD_RANGE_M = (0.018, 0.075)
 NS = '/stereo_ground_dem'
 LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability', 'obstacle',
-          'obstacle_height', 'intensity']
+          'obstacle_height', 'residual', 'residual_outlier_rate', 'intensity']
 
 
 class KittiSampleTest(unittest.TestCase):
@@ -67,6 +67,14 @@ class KittiSampleTest(unittest.TestCase):
         self.assertGreater(np.count_nonzero(both), 0.5 * h.size, 'intensity where the elevation is known')
         self.assertTrue(((g[np.isfinite(g)] >= 0) & (g[np.isfinite(g)] <= 255)).all())
         self.assertGreater(float(np.std(g[both])), 3.0, 'the road has texture')
+        # the photometric residual: known where the ground was seen; on the KITTI road a few grey
+        # levels (the raw clip: median 6.8 grey), outlier rates within 0..1
+        res = sup.layer(last, 'residual')
+        rate = sup.layer(last, 'residual_outlier_rate')
+        seen = np.isfinite(res)
+        self.assertGreater(np.count_nonzero(seen & np.isfinite(sup.layer(last, 'elevation'))), 0.3 * h.size)
+        self.assertLess(float(np.median(res[seen])), 15.0)
+        self.assertTrue(((rate[seen] >= 0) & (rate[seen] <= 1)).all())
         occ = np.array(self.rec.occupancy[-1][1].data)
         self.assertTrue(((occ >= -1) & (occ <= 100)).all())
         self.assertGreater(np.count_nonzero(occ == 0) + np.count_nonzero((occ > 0) & (occ < 50)), 100,
@@ -149,7 +157,8 @@ class KittiSampleTest(unittest.TestCase):
         sup.run([sup.executable('dem_offline'), '--sequence', self.sequence, '--out', offline, '--config',
                  os.path.join(sup.source_dir(), 'config', 'kitti.yaml'), '--quiet'])
         for name in ['dem.tif', 'dem.yaml', 'variance.tif', 'traversability.tif', 'dem_height.png',
-                     'traversability.png', 'mesh.ply', 'intensity.tif', 'ortho.tif', 'ortho.png']:
+                     'traversability.png', 'mesh.ply', 'intensity.tif', 'ortho.tif', 'ortho.png', 'residual.tif',
+                     'residual_outlier_rate.tif']:
             self.assertTrue(os.path.isfile(os.path.join(out, name)), name)
             self.assertTrue(os.path.isfile(os.path.join(offline, name)), name)
         with open(os.path.join(out, 'dem.yaml')) as f:

@@ -29,7 +29,7 @@ from stereo_ground_dem.srv import GetSubmap  # noqa: E402
 
 NS = '/stereo_ground_dem'
 LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability', 'obstacle',
-          'obstacle_height', 'intensity']
+          'obstacle_height', 'residual', 'residual_outlier_rate', 'intensity']
 
 
 class ReconfigureTest(unittest.TestCase):

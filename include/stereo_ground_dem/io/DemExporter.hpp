@@ -9,7 +9,8 @@
 ///   with an ortho-texture (OrthoTexture): intensity.tif (its mean grey per DEM cell), ortho.tif (float32
 ///   grey on the texel lattice, the same GeoTIFF conventions at ortho_grid's resolution) and ortho.png
 ///   (8-bit grey + alpha, unknown transparent, drawn like the map pictures: +x up, +y left, one pixel
-///   per texel).
+///   per texel); with the photometric-residual layers, residual.tif [grey] and
+///   residual_outlier_rate.tif [0..1].
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
@@ -28,6 +29,8 @@ struct DemExport {
   cv::Mat obstacles;       ///< optional: 1 obstacle (on or hidden by one), 0 ground seen, NaN unknown
   cv::Mat obstacle_height; ///< optional: obstacle top above the ground [m], NaN where none measured
   cv::Mat intensity;       ///< optional: ortho-texture grey per cell [8-bit units], NaN unknown
+  cv::Mat residual;        ///< optional: photometric residual per cell [grey], NaN never observed
+  cv::Mat residual_outlier_rate;  ///< optional: how often the cell was an outlier [0..1]
   cv::Mat ortho;           ///< optional: the ortho-texture on ortho_grid (CV_32F grey, NaN unknown)
   GroundGrid ortho_grid;   ///< the texel lattice window of `ortho`
   Eigen::Isometry3d ground_T_camera0 = Eigen::Isometry3d::Identity();

@@ -45,10 +45,10 @@ class DemPublisher {
   void setTraversability(const TraversabilityOptions& options);
 
   /// Publishes pose, tf, odometry, path and the local (and, at most global_map_rate_hz, the whole)
-  /// map of one processed frame; `camera_frame` is the left optical frame; `ortho` (optional) adds
-  /// the intensity layer. Returns a one-line text of the map's known extent (for diagnostics).
+  /// map of one processed frame; `camera_frame` is the left optical frame; `extra` adds the layers
+  /// kept beside the map. Returns a one-line text of the map's known extent (for diagnostics).
   std::string publish(const FrameResult& frame, const ElevationMap& map, const ros::Time& stamp,
-                      const std::string& camera_frame, const OrthoTexture* ortho = nullptr);
+                      const std::string& camera_frame, const ExtraLayerSources& extra = ExtraLayerSources());
   /// The camera above the local ground (~ground_attitude) of one mapped frame.
   void publishAttitude(const GroundAttitudeEstimate& attitude, const ros::Time& stamp, const std::string& camera_frame);
   /// Forgets the trajectory, the covariance and the cached camera mount (a new map).

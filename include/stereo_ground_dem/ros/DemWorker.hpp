@@ -30,9 +30,11 @@ namespace stereo_ground_dem {
 
 class DemWorker {
  public:
-  /// `ortho`: the ortho-texture's options (its keep radius is taken from the map's).
+  /// `ortho`, `residual`: the options of the layers kept beside the map (their keep radius is taken
+  /// from the map's).
   DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
-            const std::string& logger, const OrthoTextureOptions& ortho = OrthoTextureOptions());
+            const std::string& logger, const OrthoTextureOptions& ortho = OrthoTextureOptions(),
+            const PhotometricResidualOptions& residual = PhotometricResidualOptions());
   ~DemWorker();  ///< stop()
 
   void start();
@@ -76,8 +78,12 @@ class DemWorker {
   std::unique_ptr<IncrementalEstimator> estimator_;
   std::vector<Eigen::Vector2d> trajectory_xy_;
   const OrthoTextureOptions ortho_options_;
-  std::unique_ptr<OrthoTexture> ortho_;  ///< null when disabled; cleared with the map
-  void restartOrtho(double keep_radius_m);
+  const PhotometricResidualOptions residual_options_;
+  std::unique_ptr<OrthoTexture> ortho_;              ///< null when disabled; renewed with the map
+  std::unique_ptr<PhotometricResidualMap> residual_; ///< null when disabled; renewed with the map
+  /// New, empty layers beside the map (at every new map: the keep radius and the resolution follow
+  /// the estimator's options).
+  void restartLayers(const IncrementalEstimatorOptions& options, double resolution_m);
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   double last_processed_stamp_s_ = -1.0;

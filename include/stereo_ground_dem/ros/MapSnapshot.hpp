@@ -12,12 +12,14 @@
 
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/OrthoTexture.hpp"
+#include "stereo_ground_dem/PhotometricResidualMap.hpp"
 
 namespace stereo_ground_dem {
 
 struct MapSnapshot {
   std::shared_ptr<const ElevationMap> map;                ///< null: nothing mapped (yet, or since a reset)
   std::shared_ptr<const OrthoTexture> ortho;              ///< null when ortho_enabled is false (tiles shared: cheap)
+  std::shared_ptr<const PhotometricResidualMap> residual; ///< null when residual_enabled is false (likewise)
   Eigen::Isometry3d ground_T_camera0 = Eigen::Isometry3d::Identity();
   std::vector<Eigen::Vector2d> trajectory_xy;             ///< ground (x, y) of the left camera per frame
   ros::Time stamp;                                        ///< of the last fused frame

@@ -5,7 +5,8 @@
 ///   slope [rad], step [m], roughness [m], traversability [0..1] (TraversabilityFilter), and
 ///   obstacle [1 obstacle, 0 ground seen last], obstacle_height [m above the ground]
 ///   (ElevationMap::Layer::kObstacle, kObstacleHeight), and, with an ortho-texture, intensity [grey,
-///   the first frame's exposure, 8-bit units] (OrthoTexture::sample: the mean of the cell's texels).
+///   the first frame's exposure, 8-bit units] (OrthoTexture::sample: the mean of the cell's texels),
+///   and with the photometric-residual map, residual [grey] and residual_outlier_rate [0..1].
 ///   Traversability is 0 wherever obstacle is 1, also where the ground under the obstacle is unknown.
 /// All CV_32F, NaN where unknown. The filter runs on the window grown by its largest window
 /// radius so that cells at the border see the same neighbourhood as inside the map, then is
@@ -19,6 +20,7 @@
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/GroundGrid.hpp"
 #include "stereo_ground_dem/OrthoTexture.hpp"
+#include "stereo_ground_dem/PhotometricResidualMap.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 #include "stereo_ground_dem/ros/GridLayer.hpp"
 
@@ -34,6 +36,12 @@ struct DemLayers {
   int knownCount() const;
 };
 
+/// The layers kept beside the ElevationMap (null: not published).
+struct ExtraLayerSources {
+  const OrthoTexture* ortho = nullptr;
+  const PhotometricResidualMap* residual = nullptr;
+};
+
 class MapWindowSampler {
  public:
   /// Throws std::invalid_argument if `options` is invalid (TraversabilityFilter's check).
@@ -41,9 +49,9 @@ class MapWindowSampler {
   void setTraversability(const TraversabilityOptions& options);
 
   /// The layers over `window` (on the map's lattice), decimated by the smallest stride that
-  /// keeps at most max_cells vertices (max_cells <= 0: no limit); `ortho` adds the intensity layer.
+  /// keeps at most max_cells vertices (max_cells <= 0: no limit); `extra` adds their layers.
   DemLayers sample(const ElevationMap& map, const GroundGrid& window, int max_cells = 0,
-                   const OrthoTexture* ortho = nullptr) const;
+                   const ExtraLayerSources& extra = ExtraLayerSources()) const;
 
   /// The lattice window of spacing resolution_m whose vertex rectangle has its centre nearest to
   /// (center_x, center_y) and spans at least size_x_m x size_y_m (at least 2 x 2 vertices).
