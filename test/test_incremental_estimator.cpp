@@ -569,7 +569,7 @@ TEST(PhotometricResidualMap, FlagsAMovingObjectNotTheStaticRoad) {
     const FrameResult r = est.processFrame(p.left.image, p.right.image, gen.frames()[static_cast<size_t>(k)].time_s);
     ASSERT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked) << k;
     residual.update(est.map(), r.window, est.lastLeftImage(), est.lastRightImage(), rig, r.ground_T_camera,
-                    r.photometric[0], r.photometric[1]);
+                    r.rectification, r.photometric[0], r.status == FrameStatus::kTracked ? &r.photometric[1] : nullptr);
   }
   const double t_end = gen.frames().back().time_s;
   const Eigen::Isometry3d true_T_est = gen.frames()[0].ground_T_left * est.groundTCamera0().inverse();
@@ -593,7 +593,7 @@ TEST(PhotometricResidualMap, FlagsAMovingObjectNotTheStaticRoad) {
       road_rate.push_back(rate.at<float>(g.rowOf(v), g.colOf(v)));
     }
   }
-  ASSERT_GT(on_box.size(), 5u);
+  ASSERT_GE(on_box.size(), 4u);  // measured 6: the cells of the box's near half (its far half is hidden)
   ASSERT_GT(road.size(), 200u);
   auto median = [](std::vector<double> x) {
     std::nth_element(x.begin(), x.begin() + static_cast<long>(x.size() / 2), x.end());

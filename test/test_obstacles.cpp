@@ -8,6 +8,7 @@
 
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
+#include "stereo_ground_dem/TraversabilityFilter.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
 #include "stereo_ground_dem/sim/StereoRenderer.hpp"
 #include "synthetic_pair.hpp"
@@ -310,4 +311,80 @@ TEST(Obstacles, MovingObjectsLeaveNoGhosts) {
   EXPECT_GE(static_flagged, 0.95 * static_cells);
   EXPECT_LT(q.median, 0.01);
   EXPECT_LT(q.p95, 0.03);
+}
+
+// The probability of being traversable (TraversabilityFilter::probability on the fused map's
+// heights and variance, 0 on obstacle cells as the node publishes it) against the truth: the
+// same filter on the TRUE terrain heights, with the obstacles' footprints not traversable. Bump,
+// 12 cm curb, parked car, wall and poles, 15 frames.
+TEST(Obstacles, TraversabilityProbabilityAgainstTheTruth) {
+  sim::SceneOptions so = sim::SceneOptions::standard(sim::SceneKind::kBumpAndCurb, 5);
+  so.addStandardObstacles();
+  const sim::SyntheticScene scene(so);
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  sim::SequenceOptions sq;
+  sq.frames = 15;
+  const sim::SequenceGenerator gen(scene, rig, sq);
+  IncrementalEstimator est(rig, IncrementalEstimatorOptions());
+  for (int k = 0; k < sq.frames; ++k) {
+    const sim::RenderedPair p = gen.render(k);
+    const FrameResult r = est.processFrame(p.left.image, p.right.image, gen.frames()[static_cast<size_t>(k)].time_s);
+    ASSERT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked) << k;
+  }
+  const GroundGrid g = est.map().knownBounds();
+  const cv::Mat elev = est.map().layer(ElevationMap::Layer::kElevation, g);
+  const cv::Mat var = est.map().layer(ElevationMap::Layer::kVariance, g);
+  const cv::Mat obst = est.map().layer(ElevationMap::Layer::kObstacle, g);
+  const TraversabilityFilter filter{TraversabilityOptions()};
+  const TraversabilityLayers t = filter.compute(g, elev);
+  cv::Mat p = filter.probability(g, t, var);
+  p.setTo(0.0f, obst >= 0.5f);
+  // The truth on the same vertices (moved into the true frame).
+  const Eigen::Isometry3d true_T_est = gen.frames()[0].ground_T_left * est.groundTCamera0().inverse();
+  cv::Mat truth_h(g.rows, g.cols, CV_32F);
+  for (int r = 0; r < g.rows; ++r)
+    for (int c = 0; c < g.cols; ++c) truth_h.at<float>(r, c) = static_cast<float>(toTruth(scene, true_T_est, g, r, c, 0.0).terrain);
+  const TraversabilityLayers tt = filter.compute(g, truth_h);
+  // Calibration: per bin of P, how many cells and which fraction is truly traversable (cells the
+  // obstacle layer marks, P = 0, counted on their own); and the true obstacles' footprints.
+  const double edges[] = {0.0, 0.1, 0.5, 0.9, 1.0001};
+  int count[4] = {0, 0, 0, 0}, free_in[4] = {0, 0, 0, 0}, marked = 0, marked_free = 0, footprint = 0, footprint_low = 0;
+  for (int r = 0; r < g.rows; ++r) {
+    for (int c = 0; c < g.cols; ++c) {
+      const float pv = p.at<float>(r, c), tv = tt.traversability.at<float>(r, c);
+      if (!std::isfinite(pv) || !std::isfinite(tv)) continue;
+      const TrueVertex v = toTruth(scene, true_T_est, g, r, c, 0.0);
+      const bool in_footprint = footprintDistance(so, v.p.x(), v.p.y(), 0.0) == 0.0;
+      const bool free = tv > 0.0f && !in_footprint;
+      if (in_footprint) {
+        ++footprint;
+        footprint_low += pv < 0.1f;
+      }
+      if (obst.at<float>(r, c) >= 0.5f) {
+        ++marked;
+        marked_free += free;
+        continue;
+      }
+      for (int b = 0; b < 4; ++b) {
+        if (pv >= edges[b] && pv < edges[b + 1]) {
+          ++count[b];
+          free_in[b] += free;
+        }
+      }
+    }
+  }
+  for (int b = 0; b < 4; ++b)
+    std::printf("[ traversable ] P in [%.1f, %.1f): %d cells, %.1f %% truly traversable\n", edges[b], std::min(1.0, edges[b + 1]),
+                count[b], 100.0 * free_in[b] / std::max(1, count[b]));
+  std::printf("[ traversable ] obstacle-marked %d cells (P = 0), %d of them free ground (hidden); true footprints %d cells, "
+              "%d with P < 0.1\n", marked, marked_free, footprint, footprint_low);
+  // Measured: P >= 0.9: 3,329 cells, 99.2 % truly traversable; 0.5-0.9: 681, 100 %; 0.1-0.5:
+  // 1,027, 100 % (far ground whose data-only variance is large: the probability is under-confident
+  // there, docs/ros.md); obstacle-marked 646 (604 of them free ground hidden behind the obstacles);
+  // true footprints 68 cells, 42 with P < 0.1.
+  EXPECT_GT(count[3], 1600);
+  EXPECT_GT(free_in[3], 0.984 * count[3]);  // a 2x rise of the 0.8 % of false "traversable" fails
+  EXPECT_GT(footprint, 30);
+  EXPECT_GT(footprint_low, 0.45 * footprint);
+  EXPECT_LT(marked, 1300);
 }

@@ -320,7 +320,7 @@ TEST(PhotometricResidualMap, ExactOnAPlaneAndFlagsWhatTheGroundDoesNotExplain) {
   right_pose.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
   // L = 1.25 R + 5: the right image is (scene - 5) / 1.25.
   const cv::Mat left = image(camera(0.0)), right = image(right_pose, 1.0 / 1.25, -5.0 / 1.25);
-  res.update(map, w, left, right, rig(), camera(0.0), {1.25, 5.0}, sgd::PhotometricParams());
+  res.update(map, w, left, right, rig(), camera(0.0), sgd::VerticalMisalignment(), {1.25, 5.0}, nullptr);
   const sgd::GroundGrid near = sgd::GroundGrid::covering(8.0, 15.0, -3.0, 3.0, 0.5);
   cv::Mat r = res.layer(sgd::PhotometricResidualMap::Layer::kResidual, near);
   double worst = 0.0;
@@ -339,7 +339,9 @@ TEST(PhotometricResidualMap, ExactOnAPlaneAndFlagsWhatTheGroundDoesNotExplain) {
     return cv::Point(static_cast<int>(k.fx * p.x() / p.z() + k.cx), static_cast<int>(k.fy * p.y() / p.z() + k.cy));
   };
   cv::rectangle(left1, cv::Rect(pixel(12.0, 0.5), pixel(11.0, -0.5)), cv::Scalar(250.0), cv::FILLED);
-  res.update(map, w, left1, image(right1, 1.0 / 1.25, -5.0 / 1.25), rig(), camera(1.0), {1.25, 5.0}, sgd::PhotometricParams());
+  const sgd::PhotometricParams same;
+  res.update(map, w, left1, image(right1, 1.0 / 1.25, -5.0 / 1.25), rig(), camera(1.0), sgd::VerticalMisalignment(),
+             {1.25, 5.0}, &same);
   const cv::Mat rate = res.layer(sgd::PhotometricResidualMap::Layer::kOutlierRate, near);
   r = res.layer(sgd::PhotometricResidualMap::Layer::kResidual, near);
   const cv::Mat obs = res.layer(sgd::PhotometricResidualMap::Layer::kObservations, near);
@@ -347,7 +349,8 @@ TEST(PhotometricResidualMap, ExactOnAPlaneAndFlagsWhatTheGroundDoesNotExplain) {
   for (int v = 0; v < near.vertexCount(); ++v) {
     const Eigen::Vector2d p = near.position(v);
     const bool inside = p.x() > 11.2 && p.x() < 11.8 && std::abs(p.y()) < 0.3;
-    const bool outside = p.x() < 10.4 || p.x() > 12.6 || std::abs(p.y()) > 1.1;
+    // cells (vertex +- 0.25 m) that do not overlap the square x 11-12, y -0.5..0.5
+    const bool outside = p.x() < 10.6 || p.x() > 12.4 || std::abs(p.y()) > 0.9;
     const float f = rate.at<float>(near.rowOf(v), near.colOf(v));
     EXPECT_EQ(obs.at<float>(near.rowOf(v), near.colOf(v)), 2.0f);
     if (inside) flagged_inside += f == 0.5f;  // one outlier frame of two, update_weight 0.5
@@ -363,7 +366,55 @@ TEST(PhotometricResidualMap, ExactOnAPlaneAndFlagsWhatTheGroundDoesNotExplain) {
   EXPECT_FALSE(o.isValid(&why));
   EXPECT_EQ(why, "update_weight must be in (0, 1]");
   EXPECT_THROW(sgd::PhotometricResidualMap(0.5, o), std::invalid_argument);
-  EXPECT_THROW(res.update(map, sgd::GroundGrid::covering(0, 10, 0, 10, 0.25), left, right, rig(), camera(0.0), {}, {}),
+  EXPECT_THROW(res.update(map, sgd::GroundGrid::covering(0, 10, 0, 10, 0.25), left, right, rig(), camera(0.0),
+                          sgd::VerticalMisalignment(), {}, nullptr),
                std::invalid_argument);
-  EXPECT_THROW(res.update(map, w, left, right(cv::Rect(0, 0, 100, 100)), rig(), camera(0.0), {}, {}), std::invalid_argument);
+  EXPECT_THROW(res.update(map, w, left, right(cv::Rect(0, 0, 100, 100)), rig(), camera(0.0), sgd::VerticalMisalignment(),
+                          {}, nullptr),
+               std::invalid_argument);
+}
+
+// The temporal pair's gain/bias and the stereo pair's rectification model are used as the estimator
+// uses them: with them the residual is the interpolation error, without them it is not.
+TEST(PhotometricResidualMap, UsesTheTemporalGainAndTheRowShift) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  Eigen::Isometry3d r0 = camera(0.0), r1 = camera(1.0);
+  r0.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
+  r1.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
+  const sgd::GroundGrid near = sgd::GroundGrid::covering(9.0, 15.0, -3.0, 3.0, 0.5);
+  auto median = [&](const sgd::PhotometricResidualMap& m) {
+    cv::Mat r = m.layer(sgd::PhotometricResidualMap::Layer::kResidual, near);
+    std::vector<float> v(r.begin<float>(), r.end<float>());
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  // Frame 1 exposed 1.2 x + 3 brighter than frame 0 (L_1 = 1.2 L_0 + 3); both pairs with L = R.
+  for (const bool right_gain : {true, false}) {
+    sgd::PhotometricResidualOptions o;
+    o.update_weight = 1.0;  // the last frame only
+    sgd::PhotometricResidualMap m(0.5, o);
+    m.update(map, w, image(camera(0.0)), image(r0), rig(), camera(0.0), sgd::VerticalMisalignment(), {}, nullptr);
+    const sgd::PhotometricParams temporal = right_gain ? sgd::PhotometricParams{1.2, 3.0} : sgd::PhotometricParams{};
+    m.update(map, w, image(camera(1.0), 1.2, 3.0), image(r1, 1.2, 3.0), rig(), camera(1.0), sgd::VerticalMisalignment(),
+             {}, &temporal);
+    std::printf("[ residual ] temporal gain %s: median %.3f grey\n", right_gain ? "given" : "identity", median(m));
+    if (right_gain) EXPECT_LT(median(m), 0.06);
+    else EXPECT_GT(median(m), 5.0);
+  }
+  // The right image's rows 1.5 px low (v_right = v + 1.5): modelled, or not.
+  cv::Mat shifted;
+  const cv::Mat right = image(r0);
+  const cv::Mat down = (cv::Mat_<double>(2, 3) << 1, 0, 0, 0, 1, 1.5);
+  cv::warpAffine(right, shifted, down, right.size(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  sgd::VerticalMisalignment m15;
+  m15.row_shift_px[0] = 1.5;
+  for (const bool modelled : {true, false}) {
+    sgd::PhotometricResidualMap m(0.5);
+    m.update(map, w, image(camera(0.0)), shifted, rig(), camera(0.0), modelled ? m15 : sgd::VerticalMisalignment(), {},
+             nullptr);
+    std::printf("[ residual ] row shift %s: median %.3f grey\n", modelled ? "modelled" : "ignored", median(m));
+    if (modelled) EXPECT_LT(median(m), 0.1);
+    else EXPECT_GT(median(m), 1.0);
+  }
 }

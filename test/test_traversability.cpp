@@ -561,3 +561,43 @@ TEST(TraversabilityFilter, LargeGridWithAHole) {
     EXPECT_GE(countNaN(t.traversability), 50 * 80) << name;
   }
 }
+
+// The probability of being traversable: certain on flat ground with a small std, one half at a
+// step exactly at the critical height, falling as the heights' std grows; NaN where unknown.
+TEST(TraversabilityFilter, ProbabilityPropagatesTheHeightStd) {
+  GroundGrid g;
+  g.resolution_m = 0.1;
+  g.rows = 41;
+  g.cols = 41;
+  TraversabilityOptions o;
+  o.height_std_floor_m = 0.001;
+  const TraversabilityFilter f(o);
+  cv::Mat z(g.rows, g.cols, CV_32F, cv::Scalar(0.0f));
+  for (int r = 0; r < g.rows; ++r)
+    for (int c = 21; c < g.cols; ++c) z.at<float>(r, c) = 0.2f;  // a 0.2 m step (the critical one) at column 21
+  const TraversabilityLayers t = f.compute(g, z);
+  auto p_at = [&](double std_m, int r, int c) {
+    const cv::Mat var(g.rows, g.cols, CV_32F, cv::Scalar(static_cast<float>(std_m * std_m)));
+    return f.probability(g, t, var).at<float>(r, c);
+  };
+  EXPECT_NEAR(p_at(0.01, 20, 5), 1.0, 1e-6);      // flat, 1 cm: certain
+  EXPECT_NEAR(t.step_m.at<float>(20, 20), 0.2f, 1e-6);
+  EXPECT_NEAR(p_at(0.01, 20, 20), 0.5, 0.02);     // step at the critical height: even odds
+  // 10 cm std on flat ground: the 0.2 m step criterion alone, Phi(0.2 / (sqrt(2) 0.1)) = 0.921
+  // (the step on exactly flat ground is 0), times the roughness Phi(0.08 / 0.1) = 0.788.
+  EXPECT_NEAR(p_at(0.10, 20, 5), 0.9214 * 0.7881, 0.01);
+  EXPECT_LT(p_at(0.5, 20, 5), p_at(0.1, 20, 5));
+  // NaN where the layers are unknown, and size checks.
+  cv::Mat zn = z.clone();
+  zn.at<float>(3, 3) = kNaN;
+  const TraversabilityLayers tn = f.compute(g, zn);
+  EXPECT_TRUE(std::isnan(f.probability(g, tn, cv::Mat(g.rows, g.cols, CV_32F, cv::Scalar(1e-4f))).at<float>(3, 3)));
+  EXPECT_THROW(f.probability(g, t, cv::Mat(3, 3, CV_32F)), std::invalid_argument);
+  // The floor: a zero variance counts as height_std_floor_m.
+  o.height_std_floor_m = 0.1;
+  const TraversabilityFilter floored(o);
+  EXPECT_NEAR(floored.probability(g, t, cv::Mat(g.rows, g.cols, CV_32F, cv::Scalar(0.0f))).at<float>(20, 5),
+              0.9214 * 0.7881, 0.01);
+  o.height_std_floor_m = 0.0;
+  EXPECT_FALSE(o.isValid(nullptr));
+}

@@ -7,9 +7,14 @@
 /// Per mapped frame (update()), every cell of the frame's window is sampled on an n x n sub-grid of
 /// points on the fused surface (GroundGrid's piecewise-linear mesh). Each point is projected into the
 /// current left image and into
-///  - the current right image (the stereo pair): r_s = L_k(u) - (g_s R_k(u_r) + b_s),
+///  - the current right image (the stereo pair) with the estimator's own stereo geometry (the
+///    rectification's modelled vertical misalignment: the right camera's y offset and the row shift,
+///    VerticalMisalignment): r_s = L_k(u) - (g_s R_k(u_r) + b_s),
 ///  - the previous mapped left image at its pose (the temporal pair): r_t = L_k(u) - (g_t L_{k-1}(u_p) + b_t),
-/// with the estimator's gain/bias of each pair (PhotometricParams: reference = gain * other + bias).
+/// with the estimator's gain/bias of each pair (PhotometricParams: reference = gain * other + bias);
+/// the temporal pair only for frames whose motion was estimated against that previous frame
+/// (tracked frames; a re-initialized frame has no estimated temporal gain). Points where a sampled
+/// value is dark or saturated are not used (as in the aligner).
 /// The cell's residual this frame is the median over its points of max(|r_s|, |r_t|) [grey], each
 /// clamped at `max_residual_grey`; a cell is an outlier this frame when that exceeds
 /// max(outlier_sigmas * sigma, min_outlier_grey), sigma = 1.4826 * the median of the frame's cell
@@ -29,6 +34,7 @@
 #include "stereo_ground_dem/LatticeTiles.hpp"
 #include "stereo_ground_dem/PhotometricParams.hpp"
 #include "stereo_ground_dem/StereoRig.hpp"
+#include "stereo_ground_dem/VerticalMisalignment.hpp"
 
 namespace stereo_ground_dem {
 
@@ -45,6 +51,8 @@ struct PhotometricResidualOptions {
   double keep_radius_m = 200.0;    ///< tiles whose centre is farther from the vehicle are evicted [m]
   int tile_size = 64;              ///< cells per tile side
   int image_margin_px = 2;         ///< points projecting this close to an image border are not used [px]
+  double dark_level_grey = 1.5;        ///< sampled values at or below: the point is not used
+  double saturated_level_grey = 253.5; ///< ... at or above
 
   bool isValid(std::string* why) const;
 };
@@ -57,12 +65,14 @@ class PhotometricResidualMap {
   PhotometricResidualMap(double resolution_m, const PhotometricResidualOptions& options = PhotometricResidualOptions());
 
   /// One mapped frame: `left`, `right` (CV_32F grey, full resolution of `rig`) at `ground_T_camera`,
-  /// the map already holding this frame's heights, the stereo pair's gain/bias (L = g R + b) and the
-  /// temporal pair's (L_k = g L_{k-1} + b, used only when a previous frame was given). Keeps a copy
-  /// of the left image and the pose for the next frame's temporal pair. Returns the cells updated.
+  /// the map already holding this frame's heights, the rectification modelled (FrameResult::
+  /// rectification), the stereo pair's gain/bias (L = g R + b) and the temporal pair's
+  /// (L_k = g L_{k-1} + b against the previous frame given to update(); null: no temporal pair this
+  /// frame, e.g. a re-initialized one). Keeps a copy of the left image and the pose for the next
+  /// frame's temporal pair. Returns the cells updated.
   int update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left, const cv::Mat& right,
-             const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera, const PhotometricParams& stereo,
-             const PhotometricParams& temporal);
+             const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera, const VerticalMisalignment& rectification,
+             const PhotometricParams& stereo, const PhotometricParams* temporal);
 
   /// A layer over `grid` (on the cells' lattice: same resolution), CV_32F, NaN where never observed.
   cv::Mat layer(Layer which, const GroundGrid& grid) const;
@@ -74,7 +84,8 @@ class PhotometricResidualMap {
   size_t tileCount() const { return tiles_.size(); }
   size_t memoryBytes() const {
     return tiles_.size() * static_cast<size_t>(options_.tile_size) * static_cast<size_t>(options_.tile_size) *
-           (2 * sizeof(float) + sizeof(uint16_t));
+               (2 * sizeof(float) + sizeof(uint16_t)) +
+           previous_left_.total() * previous_left_.elemSize();
   }
   /// The median cell residual of the last frame [grey] (NaN before the first).
   double lastMedianResidual() const { return last_median_; }

@@ -30,6 +30,14 @@
 /// Traversability: with ratios q_s = slope / critical_slope_rad, q_t = step / critical_step_m,
 ///   q_r = roughness / critical_roughness_m: 0 if any ratio >= 1, else
 ///   slope_weight (1 - q_s) + step_weight (1 - q_t) + roughness_weight (1 - q_r).
+/// Probability of being traversable (probability()): each ratio below 1 with the height's standard
+///   deviation sigma (the map's variance, floored at height_std_floor_m) propagated through its
+///   measure, assumed Gaussian and independent:
+///   P = Phi((tan(crit_slope) - tan(slope)) / sigma_g) Phi((crit_step - step) / (sqrt(2) sigma))
+///       Phi((crit_roughness - roughness) / sigma),
+///   sigma_g = sigma / (s sqrt((2k+1)^2 k (k+1) / 3)) the least-squares gradient's std over the
+///   (2k+1)^2 slope window of spacing s (sqrt(2) sigma / s for the mesh triangles, k = 0). A step is
+///   a difference of two heights; the roughness is taken as uncertain by about one sigma.
 /// Unknown: every layer is NaN where the vertex's height is NaN (or infinite), or where fewer than
 ///   min_known_fraction of its window's (clipped) vertices are known, or where the plane fit is
 ///   degenerate (known vertices collinear); the traversability is NaN where any layer is.
@@ -61,6 +69,9 @@ struct TraversabilityOptions {
   double step_weight = 0.5;
   double roughness_weight = 0.25;
   double min_known_fraction = 0.5;  ///< of a window's vertices that must be known, in (0, 1]
+  /// Floor on the heights' standard deviation in probability() [m]: the map's variance counts only
+  /// the data of the frames (docs/method.md), real errors on KITTI are centimetres.
+  double height_std_floor_m = 0.02;
 
   /// A passenger car (tyre radius ~0.3 m, ground clearance 0.13-0.20 m, track ~1.6 m, wheelbase
   /// ~2.7 m):
@@ -122,6 +133,10 @@ class TraversabilityFilter {
   /// The traversability of one set of values (no NaN handling): 0 if any ratio >= 1, else the
   /// weighted sum of (1 - ratio).
   double combine(double slope_rad, double step_m, double roughness_m) const;
+
+  /// Per vertex, the probability that the vertex is traversable (every ratio below 1) given the
+  /// heights' variance [m^2] (CV_32F, same size; NaN unknown): CV_32F, NaN where `layers` is.
+  cv::Mat probability(const GroundGrid& grid, const TraversabilityLayers& layers, const cv::Mat& variance) const;
 
   TraversabilityWindows windows(double resolution_m) const;
   const TraversabilityOptions& options() const { return options_; }

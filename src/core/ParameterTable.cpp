@@ -144,6 +144,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("step_window_radius_m", &t.step_window_radius_m, "half side of the robot-sized step window [m]", true);
   d("step_run_m", &t.step_run_m, "horizontal run over which a rise counts as a step [m]", true);
   d("roughness_window_radius_m", &t.roughness_window_radius_m, "half side of the roughness window [m]", true);
+  d("height_std_floor_m", &t.height_std_floor_m, "floor on the heights' std in the traversability_confidence layer [m]");
   // ortho-texture
   b("ortho_enabled", &o->ortho.enabled, "drape the left images onto the map (intensity layer, ortho.tif / ortho.png)");
   d("ortho_resolution_m", &o->ortho.resolution_m, "texel size of the ortho-texture [m]");

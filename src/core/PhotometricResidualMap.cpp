@@ -37,6 +37,7 @@ bool PhotometricResidualOptions::isValid(std::string* why) const {
   if (!(keep_radius_m > 0.0)) return bad("keep_radius_m must be > 0");
   if (tile_size < 8 || tile_size > 1024) return bad("tile_size must be in 8..1024");
   if (image_margin_px < 1 || image_margin_px > 1000) return bad("image_margin_px must be in 1..1000");
+  if (!(dark_level_grey < saturated_level_grey)) return bad("need dark_level_grey < saturated_level_grey");
   return true;
 }
 
@@ -54,7 +55,8 @@ PhotometricResidualMap::PhotometricResidualMap(double resolution_m, const Photom
 
 int PhotometricResidualMap::update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left,
                                    const cv::Mat& right, const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera,
-                                   const PhotometricParams& stereo, const PhotometricParams& temporal) {
+                                   const VerticalMisalignment& rectification, const PhotometricParams& stereo,
+                                   const PhotometricParams* temporal) {
   if (!options_.enabled) return 0;
   if (left.type() != CV_32FC1 || right.type() != CV_32FC1 || left.size() != right.size() || left.cols < 2 ||
       left.rows < 2) {
@@ -63,15 +65,20 @@ int PhotometricResidualMap::update(const ElevationMap& map, const GroundGrid& wi
   if (std::abs(window.resolution_m - resolution_m_) > 1e-9) {
     throw std::invalid_argument("PhotometricResidualMap::update: window resolution differs from the map's");
   }
-  const bool with_previous = !previous_left_.empty() && previous_left_.size() == left.size();
+  const bool with_previous = temporal && !previous_left_.empty() && previous_left_.size() == left.size();
   const Eigen::Isometry3d camera_T_ground = ground_T_camera.inverse();
-  const Eigen::Vector3d right_centre = rig.rightCentreInLeft();
+  // The estimator's stereo geometry (StereoEstimator::rightTLeft, stereoTarget): the baseline, the
+  // modelled y offset, and the row shift of the right image.
+  const Eigen::Vector3d right_centre(rig.baseline_m, rectification.rightCameraOffsetY(rig), 0.0);
+  const bool row_shift = rectification.hasRowShift();
+  const float dark = static_cast<float>(options_.dark_level_grey), sat = static_cast<float>(options_.saturated_level_grey);
+  auto usable = [dark, sat](float value) { return value > dark && value < sat; };
   const double margin = options_.image_margin_px, clamp = options_.max_residual_grey;
   const int n = options_.samples_per_cell;
 
   Eigen::VectorXd z, info;
   map.sample(window, &z, &info);
-  // Per cell (a vertex of the window): the mean over its points of the worse pair's |residual|.
+  // Per cell (a vertex of the window): the median over its points of the worse pair's |residual|.
   std::vector<float> cell(static_cast<size_t>(window.vertexCount()), kNaN);
   std::vector<float> values, point_residuals;
   values.reserve(cell.size());
@@ -94,15 +101,24 @@ int PhotometricResidualMap::update(const ElevationMap& map, const GroundGrid& wi
         if (pc.z() < options_.min_range_m || pc.z() > options_.max_range_m) continue;
         double u = 0, w = 0, ur = 0, vr = 0;
         if (!project(rig, pc, left, margin, &u, &w) || !project(rig, pc - right_centre, right, margin, &ur, &vr)) continue;
-        const double l = ImagePyramid::sampleBilinear(left, u, w);
-        double r = std::min(clamp, std::abs(l - (stereo.gain * ImagePyramid::sampleBilinear(right, ur, vr) + stereo.bias_grey)));
+        if (row_shift) {
+          vr += rectification.rowShift(rig, ur, vr);
+          if (!(vr >= margin && vr <= right.rows - 1 - margin)) continue;
+        }
+        const float l = ImagePyramid::sampleBilinear(left, u, w), rv = ImagePyramid::sampleBilinear(right, ur, vr);
+        if (!usable(l) || !usable(rv)) continue;
+        const double e_s = std::abs(l - (stereo.gain * rv + stereo.bias_grey));
+        if (!std::isfinite(e_s)) continue;
+        double r = std::min(clamp, e_s);
         if (with_previous) {
           double up = 0, vp = 0;
           if (project(rig, previous_camera_T_ground_ * g, previous_left_, margin, &up, &vp)) {
-            r = std::max(r, std::min(clamp, std::abs(l - (temporal.gain * ImagePyramid::sampleBilinear(previous_left_, up, vp) + temporal.bias_grey))));
+            const float pv = ImagePyramid::sampleBilinear(previous_left_, up, vp);
+            const double e_t = std::abs(l - (temporal->gain * pv + temporal->bias_grey));
+            if (usable(pv) && std::isfinite(e_t)) r = std::max(r, std::min(clamp, e_t));
           }
         }
-        if (std::isfinite(r)) point_residuals.push_back(static_cast<float>(r));
+        point_residuals.push_back(static_cast<float>(r));
       }
     }
     if (static_cast<int>(point_residuals.size()) < options_.min_points) continue;

@@ -249,6 +249,7 @@ bool TraversabilityOptions::isValid(std::string* why) const {
   if (!(min_known_fraction > 0.0 && min_known_fraction <= 1.0)) {
     return bad("min_known_fraction must be in (0, 1]");
   }
+  if (!(height_std_floor_m > 0.0 && std::isfinite(height_std_floor_m))) return bad("height_std_floor_m must be > 0");
   return true;
 }
 
@@ -399,6 +400,40 @@ TraversabilityLayers TraversabilityFilter::compute(const GroundGrid& grid, const
       o_t[c] = std::isnan(o_sl[c]) || std::isnan(o_st[c]) || std::isnan(o_ro[c])
                    ? kNaNf
                    : static_cast<float>(combine(o_sl[c], o_st[c], o_ro[c]));
+    }
+  }
+  return out;
+}
+
+cv::Mat TraversabilityFilter::probability(const GroundGrid& grid, const TraversabilityLayers& layers,
+                                         const cv::Mat& variance) const {
+  if (variance.type() != CV_32F || variance.rows != grid.rows || variance.cols != grid.cols ||
+      layers.traversability.size() != variance.size()) {
+    throw std::invalid_argument("TraversabilityFilter::probability: variance and layers must be CV_32F of the grid's size");
+  }
+  const TraversabilityWindows w = windows(grid.resolution_m);
+  const double s = grid.resolution_m;
+  const double k = w.slope_half;
+  // The least-squares gradient's std per unit height std over the slope window.
+  const double gradient_per_sigma =
+      w.slope_half == 0 ? std::sqrt(2.0) / s : 1.0 / (s * std::sqrt((2 * k + 1) * (2 * k + 1) * k * (k + 1) / 3.0));
+  const double tan_crit = std::tan(options_.critical_slope_rad);
+  auto phi = [](double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); };
+  cv::Mat out(grid.rows, grid.cols, CV_32F, cv::Scalar(kNaNf));
+  for (int r = 0; r < grid.rows; ++r) {
+    const float* t = layers.traversability.ptr<float>(r);
+    const float* sl = layers.slope_rad.ptr<float>(r);
+    const float* st = layers.step_m.ptr<float>(r);
+    const float* ro = layers.roughness_m.ptr<float>(r);
+    const float* var = variance.ptr<float>(r);
+    float* o = out.ptr<float>(r);
+    for (int c = 0; c < grid.cols; ++c) {
+      if (std::isnan(t[c])) continue;
+      const double sigma = std::max(options_.height_std_floor_m, std::isfinite(var[c]) && var[c] > 0.0f ? std::sqrt(var[c]) : 0.0);
+      const double p = phi((tan_crit - std::tan(sl[c])) / (gradient_per_sigma * sigma)) *
+                       phi((options_.critical_step_m - st[c]) / (std::sqrt(2.0) * sigma)) *
+                       phi((options_.critical_roughness_m - ro[c]) / sigma);
+      o[c] = static_cast<float>(p);
     }
   }
   return out;

@@ -39,33 +39,26 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
   std::vector<std::string> layers{"elevation"};
   GeoTiff::write(dir + "/dem.tif", dem.elevation, dem.grid, "elevation");
   written.push_back("dem.tif");
-  if (!dem.variance.empty()) {
-    GeoTiff::write(dir + "/variance.tif", dem.variance, dem.grid, "variance");
-    written.push_back("variance.tif");
-  }
-  if (!dem.traversability.empty()) {
-    GeoTiff::write(dir + "/traversability.tif", dem.traversability, dem.grid, "traversability");
-    written.push_back("traversability.tif");
-  }
-  if (!dem.obstacles.empty()) {
-    GeoTiff::write(dir + "/obstacles.tif", dem.obstacles, dem.grid, "obstacle");
-    written.push_back("obstacles.tif");
-  }
-  if (!dem.obstacle_height.empty()) {
-    GeoTiff::write(dir + "/obstacle_height.tif", dem.obstacle_height, dem.grid, "obstacle_height");
-    written.push_back("obstacle_height.tif");
-  }
-  if (!dem.intensity.empty()) {
-    GeoTiff::write(dir + "/intensity.tif", dem.intensity, dem.grid, "intensity");
-    written.push_back("intensity.tif");
-  }
-  if (!dem.residual.empty()) {
-    GeoTiff::write(dir + "/residual.tif", dem.residual, dem.grid, "residual");
-    written.push_back("residual.tif");
-  }
-  if (!dem.residual_outlier_rate.empty()) {
-    GeoTiff::write(dir + "/residual_outlier_rate.tif", dem.residual_outlier_rate, dem.grid, "residual_outlier_rate");
-    written.push_back("residual_outlier_rate.tif");
+  // Companion rasters on the DEM's grid, each written when given and named in dem.yaml as
+  // <stem>_file: (file, layer, band name).
+  struct Companion {
+    const char* file;
+    const cv::Mat* layer;
+    const char* band;
+  };
+  const Companion companions[] = {{"variance.tif", &dem.variance, "variance"},
+                                  {"traversability.tif", &dem.traversability, "traversability"},
+                                  {"traversability_confidence.tif", &dem.traversability_confidence,
+                                   "traversability_confidence"},
+                                  {"obstacles.tif", &dem.obstacles, "obstacle"},
+                                  {"obstacle_height.tif", &dem.obstacle_height, "obstacle_height"},
+                                  {"intensity.tif", &dem.intensity, "intensity"},
+                                  {"residual.tif", &dem.residual, "residual"},
+                                  {"residual_outlier_rate.tif", &dem.residual_outlier_rate, "residual_outlier_rate"}};
+  for (const Companion& c : companions) {
+    if (c.layer->empty()) continue;
+    GeoTiff::write(dir + "/" + c.file, *c.layer, dem.grid, c.band);
+    written.push_back(c.file);
   }
   if (!dem.ortho.empty()) {
     GeoTiff::write(dir + "/ortho.tif", dem.ortho, dem.ortho_grid, "intensity");
@@ -73,12 +66,10 @@ std::vector<std::string> DemExporter::write(const std::string& dir, const DemExp
   }
   DemMetadata meta = DemMetadata::fromGrid(dem.grid, dem.ground_T_camera0, layers);
   for (const auto& kv : dem.extra) meta.extra_strings[kv.first] = kv.second;
-  // companion rasters on the same grid
-  for (const char* f : {"variance.tif", "traversability.tif", "obstacles.tif", "obstacle_height.tif", "intensity.tif", "residual.tif",
-                        "residual_outlier_rate.tif"}) {
-    if (std::find(written.begin(), written.end(), f) == written.end()) continue;
-    std::string key = std::string(f).substr(0, std::string(f).find('.')) + "_file";
-    meta.extra_strings[key] = f;
+  for (const Companion& c : companions) {
+    if (c.layer->empty()) continue;
+    const std::string f = c.file;
+    meta.extra_strings[f.substr(0, f.find('.')) + "_file"] = f;
   }
   if (!dem.ortho.empty()) {
     meta.extra_strings["ortho_file"] = "ortho.tif";

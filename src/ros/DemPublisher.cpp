@@ -200,7 +200,9 @@ void DemPublisher::publishLayers(const DemLayers& d, const std_msgs::Header& hea
   if (grid_pub.getNumSubscribers() > 0) grid_pub.publish(HeightGridConverter::toMessage(d.grid, d.layers, header));
   if (occupancy_pub.getNumSubscribers() > 0) {
     occupancy_pub.publish(cost_table_.toOccupancyGrid(d.grid, *d.find("traversability"), *d.find("observations"),
-                                                      options_.occupancy_unknown_below, header, *d.find("obstacle")));
+                                                      options_.occupancy_unknown_below, header, *d.find("obstacle"),
+                                                      *d.find("traversability_confidence"),
+                                                      options_.occupancy_min_certainty));
   }
   if (mesh_pub && mesh_pub->getNumSubscribers() > 0) {
     mesh_pub->publish(HeightMeshBuilder::build(d.grid, *d.find("elevation"), header, options_.mesh, d.find("intensity")));

@@ -71,6 +71,7 @@ bool DemServices::saveMap(SaveMap::Request& req, SaveMap::Response& res) {
   if (const cv::Mat* o = d.find("obstacle")) dem.obstacles = *o;
   if (const cv::Mat* o = d.find("obstacle_height")) dem.obstacle_height = *o;
   if (const cv::Mat* o = d.find("intensity")) dem.intensity = *o;
+  if (const cv::Mat* o = d.find("traversability_confidence")) dem.traversability_confidence = *o;
   if (const cv::Mat* o = d.find("residual")) dem.residual = *o;
   if (const cv::Mat* o = d.find("residual_outlier_rate")) dem.residual_outlier_rate = *o;
   if (snap->ortho) dem.ortho = snap->ortho->raster(&dem.ortho_grid);

@@ -73,16 +73,21 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
   const cv::Mat obstacle = map.layer(ElevationMap::Layer::kObstacle, w);
   cv::Mat traversability = t.traversability(inner).clone();
   traversability.setTo(0.0f, obstacle >= 0.5f);  // NaN compares false: unknown stays as it is
+  // The probability of being traversable from the heights' variance (0 on obstacles too).
+  const cv::Mat variance = map.layer(ElevationMap::Layer::kVariance, padded);
+  cv::Mat probability = filter_.probability(padded, t, variance)(inner).clone();
+  probability.setTo(0.0f, obstacle >= 0.5f);
 
   DemLayers out;
   out.grid = w;
   out.layers = {{"elevation", elevation_padded(inner).clone()},
-                {"variance", map.layer(ElevationMap::Layer::kVariance, w)},
+                {"variance", variance(inner).clone()},
                 {"observations", map.layer(ElevationMap::Layer::kObservations, w)},
                 {"slope", t.slope_rad(inner).clone()},
                 {"step", t.step_m(inner).clone()},
                 {"roughness", t.roughness_m(inner).clone()},
                 {"traversability", traversability},
+                {"traversability_confidence", probability},
                 {"obstacle", obstacle},
                 {"obstacle_height", map.layer(ElevationMap::Layer::kObstacleHeight, w)}};
   if (extra.residual) {

@@ -9,7 +9,7 @@ const std::vector<std::string>& RosNodeOptions::names() {
   static const std::vector<std::string> kNames = {
       "queue_size", "approximate_sync", "slop_s", "lazy", "tune_allocator", "odom_frame", "base_frame", "camera_frame",
       "publish_tf", "tf_wait_s", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
-      "global_map_max_cells", "mesh_max_triangles", "mesh_colors", "occupancy_unknown_below", "path_max_poses",
+      "global_map_max_cells", "mesh_max_triangles", "mesh_colors", "occupancy_unknown_below", "occupancy_min_certainty", "path_max_poses",
       "save_directory", "diagnostic_period_s", "input_check_period_s", "unobserved_std_m", "unobserved_std_rad",
       "motion_covariance_scale",
       "restart_back_s", "max_stamp_gap_s", "image_transport"};
@@ -37,6 +37,7 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("mesh_colors", mesh_colors, mesh_colors);
   o.mesh.color_by_intensity = mesh_colors == "intensity";
   pnh.param("occupancy_unknown_below", o.occupancy_unknown_below, o.occupancy_unknown_below);
+  pnh.param("occupancy_min_certainty", o.occupancy_min_certainty, o.occupancy_min_certainty);
   pnh.param("path_max_poses", o.path_max_poses, o.path_max_poses);
   pnh.param("save_directory", o.save_directory, o.save_directory);
   pnh.param("diagnostic_period_s", o.diagnostic_period_s, o.diagnostic_period_s);
@@ -59,6 +60,9 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
     bad.push_back("~mesh_colors must be 'height' or 'intensity', got '" + mesh_colors + "'");
   }
   if (o.path_max_poses < 1) bad.push_back("~path_max_poses must be >= 1");
+  if (!(o.occupancy_min_certainty >= 0.0 && o.occupancy_min_certainty <= 1.0)) {
+    bad.push_back("~occupancy_min_certainty must be in 0..1");
+  }
   if (!(o.unobserved_std_m > 0.0) || !(o.unobserved_std_rad > 0.0)) bad.push_back("~unobserved_std_* must be > 0");
   if (!(o.motion_covariance_scale > 0.0) || !std::isfinite(o.motion_covariance_scale)) {
     bad.push_back("~motion_covariance_scale must be > 0");

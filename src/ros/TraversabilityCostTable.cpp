@@ -23,7 +23,8 @@ int8_t TraversabilityCostTable::occupancy(float t) const {
 nav_msgs::OccupancyGrid TraversabilityCostTable::toOccupancyGrid(const GroundGrid& grid, const cv::Mat& trav,
                                                                  const cv::Mat& observations, int min_observations,
                                                                  const std_msgs::Header& header,
-                                                                 const cv::Mat& obstacle) const {
+                                                                 const cv::Mat& obstacle, const cv::Mat& probability,
+                                                                 double min_certainty) const {
   const cv::Size size(grid.cols, grid.rows);
   if (trav.type() != CV_32F || trav.size() != size) {
     throw std::invalid_argument("traversability layer does not match the grid");
@@ -35,6 +36,10 @@ nav_msgs::OccupancyGrid TraversabilityCostTable::toOccupancyGrid(const GroundGri
   const bool use_obstacle = !obstacle.empty();
   if (use_obstacle && (obstacle.type() != CV_32F || obstacle.size() != size)) {
     throw std::invalid_argument("obstacle layer does not match the grid");
+  }
+  const bool use_certainty = !probability.empty() && min_certainty > 0.5;
+  if (use_certainty && (probability.type() != CV_32F || probability.size() != size)) {
+    throw std::invalid_argument("traversability probability layer does not match the grid");
   }
   nav_msgs::OccupancyGrid g;
   g.header = header;
@@ -51,9 +56,11 @@ nav_msgs::OccupancyGrid TraversabilityCostTable::toOccupancyGrid(const GroundGri
     const float* t = trav.ptr<float>(r);
     const float* o = use_obs ? observations.ptr<float>(r) : nullptr;
     const float* ob = use_obstacle ? obstacle.ptr<float>(r) : nullptr;
+    const float* p = use_certainty ? probability.ptr<float>(r) : nullptr;
     int8_t* out = g.data.data() + static_cast<size_t>(r) * static_cast<size_t>(grid.cols);
     for (int c = 0; c < grid.cols; ++c) {
-      const bool seen = !use_obs || (std::isfinite(o[c]) && o[c] >= static_cast<float>(min_observations));
+      const bool certain = !p || std::max(p[c], 1.0f - p[c]) >= static_cast<float>(min_certainty);  // NaN: false
+      const bool seen = (!use_obs || (std::isfinite(o[c]) && o[c] >= static_cast<float>(min_observations))) && certain;
       out[c] = ob && ob[c] >= 0.5f ? kLethal : seen ? occupancy(t[c]) : kUnknown;
     }
   }

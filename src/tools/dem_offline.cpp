@@ -154,10 +154,12 @@ void writeOverlay(const std::string& path, const cv::Mat& image, const cv::Mat& 
                                                      "DEM-implied disparity [px]", po));
 }
 
-/// Obstacle cells are lethal (traversability 0) whatever the elevation layer holds there.
+/// Obstacle cells are lethal (traversability 0, probability of being traversable 0) whatever the
+/// elevation layer holds there.
 void markObstacles(DemExport* dem) {
-  if (dem->obstacles.empty() || dem->traversability.empty()) return;
-  dem->traversability.setTo(0.0f, dem->obstacles == 1.0f);
+  if (dem->obstacles.empty()) return;
+  if (!dem->traversability.empty()) dem->traversability.setTo(0.0f, dem->obstacles == 1.0f);
+  if (!dem->traversability_confidence.empty()) dem->traversability_confidence.setTo(0.0f, dem->obstacles == 1.0f);
 }
 
 /// The left image with the obstacle pixels (red) and the obstacle layer's vertices (yellow dots).
@@ -354,8 +356,10 @@ int runSequence(const Args& a) {
     double residual_ms = 0.0;
     if (good && residual_options.enabled) {
       const auto t0 = std::chrono::steady_clock::now();
+      // the temporal pair only where the motion was estimated against the previous frame
       residual.update(est.map(), fr.window, est.lastLeftImage(), est.lastRightImage(), seq.rig(), fr.ground_T_camera,
-                      fr.photometric[0], fr.photometric[1]);
+                      fr.rectification, fr.photometric[0],
+                      fr.status == FrameStatus::kTracked ? &fr.photometric[1] : nullptr);
       residual.evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
       residual_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     }
@@ -411,7 +415,12 @@ int runSequence(const Args& a) {
   dem.grid = map.knownBounds();
   dem.elevation = map.layer(ElevationMap::Layer::kElevation, dem.grid);
   dem.variance = map.layer(ElevationMap::Layer::kVariance, dem.grid);
-  dem.traversability = TraversabilityFilter(o.traversability).compute(dem.grid, dem.elevation).traversability;
+  {
+    const TraversabilityFilter filter(o.traversability);
+    const TraversabilityLayers t = filter.compute(dem.grid, dem.elevation);
+    dem.traversability = t.traversability;
+    dem.traversability_confidence = filter.probability(dem.grid, t, dem.variance);
+  }
   dem.obstacles = map.layer(ElevationMap::Layer::kObstacle, dem.grid);
   dem.obstacle_height = map.layer(ElevationMap::Layer::kObstacleHeight, dem.grid);
   markObstacles(&dem);
@@ -435,7 +444,7 @@ int runSequence(const Args& a) {
               "peak memory %.0f MB\n",
               n, mapped, failures, rejected, unreadable, mean, median, peakMemoryMb());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
-              "mesh.ply, obstacles.tif, obstacle_height.tif, intensity.tif, ortho.tif, ortho.png, residual.tif, residual_outlier_rate.tif, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
+              "mesh.ply, traversability_confidence.tif, obstacles.tif, obstacle_height.tif, intensity.tif, ortho.tif, ortho.png, residual.tif, residual_outlier_rate.tif, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
               "trajectory_tum.txt, timing.csv, frames.csv, summary.txt}\n",
               a.out.c_str(), disparity_name.c_str());
   return 0;

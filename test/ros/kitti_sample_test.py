@@ -23,8 +23,8 @@ from stereo_ground_dem.srv import GetSubmap, SaveMap  # noqa: E402
 # Measured: 0.037 m after the 6 frames (final position error 0.074 m); a 2x change either way fails.
 POSITION_STD_RANGE_M = (0.018, 0.075)
 NS = '/stereo_ground_dem'
-LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability', 'obstacle',
-          'obstacle_height', 'residual', 'residual_outlier_rate', 'intensity']
+LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability',
+          'traversability_confidence', 'obstacle', 'obstacle_height', 'residual', 'residual_outlier_rate', 'intensity']
 
 
 class KittiSampleTest(unittest.TestCase):
@@ -74,7 +74,7 @@ class KittiSampleTest(unittest.TestCase):
         seen = np.isfinite(res)
         self.assertGreater(np.count_nonzero(seen & np.isfinite(sup.layer(last, 'elevation'))), 0.3 * h.size)
         self.assertLess(float(np.median(res[seen])), 15.0)
-        self.assertTrue(((rate[seen] >= 0) & (rate[seen] <= 1)).all())
+        self.assertLess(float(np.mean(rate[seen] > 0.5)), 0.3, 'most of the mapped ground is explained')
         occ = np.array(self.rec.occupancy[-1][1].data)
         self.assertTrue(((occ >= -1) & (occ <= 100)).all())
         self.assertGreater(np.count_nonzero(occ == 0) + np.count_nonzero((occ > 0) & (occ < 50)), 100,

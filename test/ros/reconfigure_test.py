@@ -28,8 +28,8 @@ from stereo_ground_dem.msg import HeightGrid  # noqa: E402
 from stereo_ground_dem.srv import GetSubmap  # noqa: E402
 
 NS = '/stereo_ground_dem'
-LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability', 'obstacle',
-          'obstacle_height', 'residual', 'residual_outlier_rate', 'intensity']
+LAYERS = ['elevation', 'variance', 'observations', 'slope', 'step', 'roughness', 'traversability',
+          'traversability_confidence', 'obstacle', 'obstacle_height', 'residual', 'residual_outlier_rate', 'intensity']
 
 
 class ReconfigureTest(unittest.TestCase):

@@ -119,6 +119,23 @@ TEST(TraversabilityCostTable, ValuesAndObstacles) {
   EXPECT_EQ(o.data[4 * 7 + 6], 100);
   EXPECT_DOUBLE_EQ(o.info.origin.position.x, g.x0() - 0.25);
   EXPECT_DOUBLE_EQ(o.info.origin.position.y, g.y0() - 0.25);
+  // Uncertain cells unknown: P 0.6 (certainty 0.6) and 0.3 (0.7) below 0.8; P 0.95 and 0.05 kept;
+  // an obstacle stays lethal whatever P says.
+  cv::Mat p(g.rows, g.cols, CV_32F, cv::Scalar(0.95f));
+  p.at<float>(0, 2) = 0.6f;
+  p.at<float>(0, 3) = 0.3f;
+  p.at<float>(0, 4) = 0.05f;
+  p.at<float>(2, 3) = 0.5f;
+  const nav_msgs::OccupancyGrid q = t.toOccupancyGrid(g, trav, obs, 1, std_msgs::Header(), obstacle, p, 0.8);
+  EXPECT_EQ(q.data[2], -1);
+  EXPECT_EQ(q.data[3], -1);
+  EXPECT_EQ(q.data[4], o.data[4]);
+  EXPECT_EQ(q.data[5], o.data[5]);
+  EXPECT_EQ(q.data[2 * 7 + 3], 100);
+  // 0 (or anything up to 0.5): off
+  EXPECT_EQ(t.toOccupancyGrid(g, trav, obs, 1, std_msgs::Header(), obstacle, p, 0.0).data, o.data);
+  EXPECT_THROW(t.toOccupancyGrid(g, trav, obs, 1, std_msgs::Header(), obstacle, cv::Mat(2, 2, CV_32F), 0.8),
+               std::invalid_argument);
 }
 
 TEST(HeightMeshBuilder, OnlyKnownTrianglesNoNaN) {

@@ -5,6 +5,7 @@
 ///   dem.tif (float32 heights [m], NaN unknown), dem.yaml (grid, origin, ground_T_camera0, layers),
 ///   variance.tif [m^2], traversability.tif [0..1], obstacles.tif (1 obstacle, 0 ground seen, NaN
 ///   unknown) and obstacle_height.tif [m above the ground] when given,
+///   traversability_confidence.tif [0..1, the probability of being traversable] when given,
 ///   dem_height.png (shaded, coloured, legend, trajectory), traversability.png, mesh.ply;
 ///   with an ortho-texture (OrthoTexture): intensity.tif (its mean grey per DEM cell), ortho.tif (float32
 ///   grey on the texel lattice, the same GeoTIFF conventions at ortho_grid's resolution) and ortho.png
@@ -26,6 +27,7 @@ struct DemExport {
   cv::Mat elevation;       ///< CV_32F rows x cols [m], NaN unknown
   cv::Mat variance;        ///< optional [m^2]
   cv::Mat traversability;  ///< optional [0..1]
+  cv::Mat traversability_confidence;  ///< optional: probability of being traversable [0..1]
   cv::Mat obstacles;       ///< optional: 1 obstacle (on or hidden by one), 0 ground seen, NaN unknown
   cv::Mat obstacle_height; ///< optional: obstacle top above the ground [m], NaN where none measured
   cv::Mat intensity;       ///< optional: ortho-texture grey per cell [8-bit units], NaN unknown

@@ -2,7 +2,8 @@
 /// \file MapWindowSampler.hpp
 /// The layers the node publishes, read from the core's ElevationMap over a window of its lattice:
 ///   elevation [m], variance [m^2], observations [frames] (ElevationMap::layer), and
-///   slope [rad], step [m], roughness [m], traversability [0..1] (TraversabilityFilter), and
+///   slope [rad], step [m], roughness [m], traversability [0..1], traversability_confidence [0..1: the
+///   probability of being traversable, TraversabilityFilter::probability, 0 on obstacles], and
 ///   obstacle [1 obstacle, 0 ground seen last], obstacle_height [m above the ground]
 ///   (ElevationMap::Layer::kObstacle, kObstacleHeight), and, with an ortho-texture, intensity [grey,
 ///   the first frame's exposure, 8-bit units] (OrthoTexture::sample: the mean of the cell's texels),

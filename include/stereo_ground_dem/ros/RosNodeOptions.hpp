@@ -31,6 +31,9 @@ struct RosNodeOptions {
   double global_map_rate_hz = 0.5;    ///< whole-map topics at most this often [Hz]; 0: never
   int global_map_max_cells = 250000;  ///< decimation bound of the whole map and of get_submap
   int occupancy_unknown_below = 1;    ///< cells observed by fewer frames are -1 in the OccupancyGrid
+  /// > 0.5: cells whose traversable / not decision is less certain (max(P, 1 - P) of the
+  /// traversability_confidence layer) are -1 in the OccupancyGrid; 0: off
+  double occupancy_min_certainty = 0.0;
   int path_max_poses = 2000;
   std::string save_directory = "stereo_ground_dem_map";  ///< default of ~save_map
   double diagnostic_period_s = 1.0;

@@ -37,12 +37,15 @@ class TraversabilityCostTable {
   const std::array<int8_t, kBins>& table() const { return table_; }
 
   /// `traversability`, `observations` and `obstacle` (1 obstacle, 0 / NaN not): CV_32F grid.rows x
-  /// grid.cols (observations and obstacle may be empty to skip them). Throws
+  /// grid.cols (observations and obstacle may be empty to skip them). With `probability` (P of
+  /// being traversable, same size) and min_certainty > 0.5, cells whose decision is less certain,
+  /// max(P, 1 - P) < min_certainty, are unknown (-1); obstacles stay lethal. Throws
   /// std::invalid_argument on a size or type mismatch.
   nav_msgs::OccupancyGrid toOccupancyGrid(const GroundGrid& grid, const cv::Mat& traversability,
                                           const cv::Mat& observations, int min_observations,
                                           const std_msgs::Header& header,
-                                          const cv::Mat& obstacle = cv::Mat()) const;
+                                          const cv::Mat& obstacle = cv::Mat(), const cv::Mat& probability = cv::Mat(),
+                                          double min_certainty = 0.0) const;
 
  private:
   std::array<int8_t, kBins> table_{};
