@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "stereo_ground_dem/GreyConverter.hpp"
+#include "stereo_ground_dem/GroundAttitudeEstimator.hpp"
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/OrthoTexture.hpp"
 #include "stereo_ground_dem/PhotometricResidualMap.hpp"
@@ -23,6 +24,7 @@ struct PipelineOptions {
   GreyConverterOptions input;  ///< image input: bit depth of 16-bit images, size limits
   OrthoTextureOptions ortho;   ///< the ortho-texture layer (its keep radius follows map_keep_radius_m)
   PhotometricResidualOptions residual;  ///< the photometric-residual layers (keep radius: the map's)
+  GroundAttitudeOptions attitude;       ///< the camera above the local ground, and the mount check
 
   bool isValid(std::string* why) const;
 };

@@ -33,6 +33,10 @@ bool PipelineOptions::isValid(std::string* why) const {
     if (why) *why = "residual: " + w;
     return false;
   }
+  if (!attitude.isValid(&w)) {
+    if (why) *why = "attitude: " + w;
+    return false;
+  }
   return true;
 }
 
@@ -154,6 +158,14 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("residual_update_weight", &o->residual.update_weight, "weight of the newest frame in the residual layers' moving averages (0..1]");
   d("residual_outlier_sigmas", &o->residual.outlier_sigmas, "a cell is an outlier when its residual exceeds this many robust sigmas of the frame's cells");
   d("residual_min_outlier_grey", &o->residual.min_outlier_grey, "... and this many grey levels [grey]");
+  // the camera above the local ground
+  d("attitude_radius_m", &o->attitude.radius_m, "ground attitude: map vertices within this distance of the camera's nadir [m]");
+  d("attitude_min_coverage", &o->attitude.min_coverage, "ground attitude: fraction of that disc that must be known [-]");
+  d("attitude_mount_height_tolerance_m", &o->attitude.mount_height_tolerance_m,
+    "mount warning: typical height above the ground may move this much from the map's start [m]");
+  d("attitude_mount_angle_tolerance_rad", &o->attitude.mount_angle_tolerance_rad,
+    "mount warning: ... and pitch or roll this much [rad]");
+  i("attitude_mount_window_frames", &o->attitude.mount_window_frames, "mount warning: frames whose medians are compared");
 }
 
 namespace {

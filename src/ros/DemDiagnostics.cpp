@@ -6,8 +6,8 @@
 namespace stereo_ground_dem {
 
 DemDiagnostics::DemDiagnostics(const std::string& logger, const std::array<std::string, 4>& topics,
-                               bool approximate_sync, double slop_s)
-    : logger_(logger), monitor_(topics, approximate_sync, slop_s) {
+                               bool approximate_sync, double slop_s, const GroundAttitudeOptions& attitude)
+    : logger_(logger), monitor_(topics, approximate_sync, slop_s), attitude_check_(attitude) {
   last_report_time_ = ros::WallTime::now();
 }
 

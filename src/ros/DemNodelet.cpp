@@ -166,10 +166,11 @@ void DemNodelet::onInit() {
 
   const std::array<std::string, 4> topics{nh.resolveName("left/image_rect"), nh.resolveName("left/camera_info"),
                                           nh.resolveName("right/image_rect"), nh.resolveName("right/camera_info")};
-  diagnostics_ = std::make_unique<DemDiagnostics>(logger, topics, options_.approximate_sync, options_.slop_s);
+  diagnostics_ = std::make_unique<DemDiagnostics>(logger, topics, options_.approximate_sync, options_.slop_s,
+                                                  pipeline_.attitude);
   publisher_ = std::make_unique<DemPublisher>(options_, pipeline_.traversability, logger);
   worker_ = std::make_unique<DemWorker>(*publisher_, *diagnostics_, pipeline_.estimator, logger, pipeline_.ortho,
-                                       pipeline_.residual);
+                                       pipeline_.residual, pipeline_.attitude);
   services_ = std::make_unique<DemServices>(*worker_, options_, pipeline_.traversability, getName());
 
   it_ = std::make_shared<image_transport::ImageTransport>(nh);

@@ -15,14 +15,15 @@ bool sameRig(const StereoRig& a, const StereoRig& b) {
 
 DemWorker::DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
                      const std::string& logger, const OrthoTextureOptions& ortho,
-                     const PhotometricResidualOptions& residual)
+                     const PhotometricResidualOptions& residual, const GroundAttitudeOptions& attitude)
     : publisher_(publisher),
       diagnostics_(diagnostics),
       logger_(logger),
       options_(options),
       snapshot_(std::make_shared<MapSnapshot>()),
       ortho_options_(ortho),
-      residual_options_(residual) {}
+      residual_options_(residual),
+      attitude_(attitude) {}
 
 void DemWorker::restartLayers(const IncrementalEstimatorOptions& options, double resolution_m) {
   // evicted with the map (map_keep_radius_m may have changed)

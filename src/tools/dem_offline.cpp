@@ -287,7 +287,7 @@ int runSequence(const Args& a) {
   checkOutputDirectory(a.out);
   o.estimator.motion_information = false;  // only the ROS odometry covariance uses it
   IncrementalEstimator est(seq.rig(), o.estimator);
-  const GroundAttitudeEstimator ground_attitude;
+  const GroundAttitudeEstimator ground_attitude(o.attitude);
   OrthoTextureOptions ortho_options = o.ortho;
   ortho_options.keep_radius_m = o.estimator.map.keep_radius_m;
   OrthoTexture ortho(ortho_options);

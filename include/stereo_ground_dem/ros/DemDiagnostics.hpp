@@ -39,8 +39,9 @@ class DemDiagnostics {
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
+  /// `attitude`: the mount check's tolerances and window (GroundAttitudeOptions).
   DemDiagnostics(const std::string& logger, const std::array<std::string, 4>& topics, bool approximate_sync,
-                 double slop_s);
+                 double slop_s, const GroundAttitudeOptions& attitude = GroundAttitudeOptions());
 
   /// Starts /diagnostics (every diagnostic_period_s) and the input check (every input_check_period_s)
   /// on `timer_nh` (use the multi-threaded private node handle).

@@ -34,7 +34,8 @@ class DemWorker {
   /// from the map's).
   DemWorker(DemPublisher& publisher, DemDiagnostics& diagnostics, const IncrementalEstimatorOptions& options,
             const std::string& logger, const OrthoTextureOptions& ortho = OrthoTextureOptions(),
-            const PhotometricResidualOptions& residual = PhotometricResidualOptions());
+            const PhotometricResidualOptions& residual = PhotometricResidualOptions(),
+            const GroundAttitudeOptions& attitude = GroundAttitudeOptions());
   ~DemWorker();  ///< stop()
 
   void start();
