@@ -65,11 +65,11 @@ NODE = '/' + PKG
 LAUNCH_EXPECT = {
     'kitti_playback.launch': dict(ready=True, dem=True, bag_done=True, timeout=100,
                                   topics=[NODE + '/dem', NODE + '/traversability', NODE + '/odom'],
-                                  services=[NODE + '/reset', NODE + '/save_map', NODE + '/get_submap']),
+                                  services=[NODE + '/reset', NODE + '/save_map', NODE + '/load_map', NODE + '/get_submap']),
     'dem_nodelet.launch': dict(ready=True, dem=False, bag_done=False, timeout=60,
                                topics=[NODE + '/dem', NODE + '/dem_global', NODE + '/traversability',
                                        NODE + '/mesh', NODE + '/odom', NODE + '/path'],
-                               services=[NODE + '/reset', NODE + '/save_map', NODE + '/get_submap']),
+                               services=[NODE + '/reset', NODE + '/save_map', NODE + '/load_map', NODE + '/get_submap']),
 }
 # the package's programs that are not ROS nodes (no master needed)
 OFFLINE_PROGRAMS = {'dem_offline', 'kitti_to_bag', 'sgd_render', 'sgd_evaluate', 'sgd_long_run', 'sgd_benchmark'}

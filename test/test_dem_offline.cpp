@@ -1,6 +1,7 @@
 // The offline runner as a user meets it: outputs on the bundled KITTI sample, one-line errors.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -10,6 +11,7 @@
 #include <sys/wait.h>
 
 #include "offline_runner.hpp"
+#include "same_layer.hpp"
 #include "stereo_ground_dem/io/DemMetadata.hpp"
 #include "stereo_ground_dem/io/DisparityPng.hpp"
 #include "stereo_ground_dem/io/GeoTiff.hpp"
@@ -111,6 +113,56 @@ TEST_F(DemOffline, SequenceModeOnTheBundledSample) {
   const std::vector<std::string> heights = column(out, 13);
   ASSERT_EQ(heights.size(), 4u);
   for (const std::string& h : heights) EXPECT_EQ(h, "nan");
+}
+
+TEST_F(DemOffline, ResumeContinuesTheMapAsOneRun) {
+  // The 6-frame sample in one run against frames 0-2 and then --resume for the rest: the DEM and
+  // its layers must be identical bit for bit, and the trajectories must join (the state holds the
+  // estimator's last frame, velocity and images; MapStateFile).
+  const std::string whole = path("whole"), a = path("first_half"), b = path("second_half");
+  ASSERT_EQ(run("--sequence " + kSample + " --out " + whole + " --quiet").status, 0);
+  ASSERT_EQ(run("--sequence " + kSample + " --out " + a + " --frames 3 --quiet").status, 0);
+  for (const char* f : {"state/state.yaml", "state/previous_left.tif", "state/previous_right.tif", "state/ortho.bin",
+                        "state/residual.bin"})
+    EXPECT_TRUE(exists(a + "/" + f)) << f;
+  const Outcome r = run("--sequence " + kSample + " --out " + b + " --resume " + a + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::vector<std::string> names = column(b, 0);
+  ASSERT_EQ(names.size(), 3u);
+  EXPECT_EQ(names.front(), "3");  // frames.csv counts the sequence's frames
+  for (const char* f : {"dem.tif", "variance.tif", "obstacles.tif", "intensity.tif", "residual.tif",
+                        "traversability_confidence.tif"}) {
+    GroundGrid g1, g2;
+    const cv::Mat m1 = GeoTiff::read(whole + "/" + f, &g1), m2 = GeoTiff::read(b + "/" + f, &g2);
+    EXPECT_TRUE(g1.sameLayout(g2)) << f;
+    EXPECT_TRUE(test::sameLayer(m1, m2)) << f;
+  }
+  auto lines = [](const std::string& file) {
+    std::ifstream in(file);
+    std::vector<std::string> v;
+    for (std::string l; std::getline(in, l);) v.push_back(l);
+    return v;
+  };
+  std::vector<std::string> joined = lines(a + "/trajectory_kitti.txt");
+  for (const std::string& l : lines(b + "/trajectory_kitti.txt")) joined.push_back(l);
+  EXPECT_EQ(joined, lines(whole + "/trajectory_kitti.txt"));
+  // Nothing left to continue, a directory without a saved map, another layout: one line, exit 1.
+  const Outcome done = run("--sequence " + kSample + " --out " + path("c") + " --resume " + b + " --quiet");
+  EXPECT_EQ(done.status, 1);
+  EXPECT_NE(done.err.find("the first frame 6 is past the sequence's 6 frames (the resumed run stopped there)"),
+            std::string::npos) << done.err;
+  const Outcome missing = run("--sequence " + kSample + " --out " + path("d") + " --resume " + path("nowhere"));
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_NE(missing.err.find("is not a directory"), std::string::npos) << missing.err;
+  const Outcome no_state = run("--sequence " + kSample + " --out " + path("f") + " --resume " + kSample);
+  EXPECT_EQ(no_state.status, 1);
+  EXPECT_NE(no_state.err.find("holds no saved map (no state.yaml)"), std::string::npos) << no_state.err;
+  std::ofstream(path("coarse.yaml")) << "grid_resolution_m: 1.0\n";
+  const Outcome layout = run("--sequence " + kSample + " --out " + path("e") + " --config " + path("coarse.yaml") +
+                             " --resume " + a + " --quiet");
+  EXPECT_EQ(layout.status, 1);
+  EXPECT_NE(layout.err.find("saved with grid_resolution_m 0.5"), std::string::npos) << layout.err;
+  for (const Outcome* o : {&done, &missing, &no_state, &layout}) EXPECT_EQ(std::count(o->err.begin(), o->err.end(), '\n'), 1) << o->err;
 }
 
 TEST_F(DemOffline, BadInputGivesOneLineAndNonZeroExit) {

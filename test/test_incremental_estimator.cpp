@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
@@ -15,6 +18,7 @@
 #include "stereo_ground_dem/PhotometricResidualMap.hpp"
 #include "stereo_ground_dem/eval/DemMetrics.hpp"
 #include "stereo_ground_dem/eval/TrajectoryMetrics.hpp"
+#include "stereo_ground_dem/io/MapStateFile.hpp"
 #include "stereo_ground_dem/sim/ScenePreset.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
 
@@ -238,6 +242,116 @@ TEST(IncrementalEstimator, ResetGivesTheSameResultsAsAFreshEstimator) {
   cv::Mat shifted = fresh.map().layer(ElevationMap::Layer::kLastUpdate, g) + static_cast<float>(n + 1);
   EXPECT_TRUE(sameLayer(shifted, reused.map().layer(ElevationMap::Layer::kLastUpdate, g)));
   EXPECT_TRUE(fresh.groundTCamera0().isApprox(reused.groundTCamera0(), 1e-12));
+}
+
+TEST(IncrementalEstimator, AMapContinuedFromItsSavedStateEqualsOneRun) {
+  // Frames 0-9 in one run against frames 0-4, a save through MapStateFile (disk), and frames 5-9
+  // in a fresh estimator and fresh layers that read it: every pose, the map, the ortho-texture and
+  // the residual layers must be identical bit for bit (what dem_offline --resume relies on). On
+  // the traffic drive, so that the previous frame's obstacle masks (exclude_previous_obstacles)
+  // matter: without them frame 5 differs.
+  const int n = 10, half = 5;
+  const auto seq = makePresetSequence(sim::SceneKind::kTraffic, n);
+  std::vector<sim::RenderedPair> frames;
+  for (int k = 0; k < n; ++k) frames.push_back(seq->gen.render(k));
+  auto stamp = [&](int k) { return seq->gen.frames()[static_cast<size_t>(k)].time_s; };
+  IncrementalEstimatorOptions options;
+  options.exclude_previous_obstacles = true;
+  struct Run {
+    IncrementalEstimator est;
+    OrthoTexture ortho;
+    PhotometricResidualMap residual;
+    std::vector<FrameResult> results;
+  };
+  auto makeRun = [&]() {
+    return std::make_unique<Run>(Run{IncrementalEstimator(seq->rig, options), OrthoTexture(OrthoTextureOptions()),
+                                     PhotometricResidualMap(options.stereo.grid_resolution_m), {}});
+  };
+  auto process = [&](Run* r, int k0, int k1) {
+    for (int k = k0; k < k1; ++k) {
+      const FrameResult f = r->est.processFrame(frames[k].left.image, frames[k].right.image, stamp(k));
+      ASSERT_TRUE(f.status == FrameStatus::kInitialized || f.status == FrameStatus::kTracked) << "frame " << k;
+      r->ortho.update(r->est.map(), f.window, r->est.lastLeftImage(), seq->rig, f.ground_T_camera, f.photometric[1]);
+      r->residual.update(r->est.map(), f.window, r->est.lastLeftImage(), r->est.lastRightImage(), seq->rig,
+                         f.ground_T_camera, f.rectification, f.photometric[0],
+                         f.status == FrameStatus::kTracked ? &f.photometric[1] : nullptr);
+      r->results.push_back(f);
+    }
+  };
+  const auto whole = makeRun();
+  process(whole.get(), 0, n);
+  const auto first = makeRun();
+  process(first.get(), 0, half);
+  char tmpl[] = "/tmp/sgd_state_XXXXXX";
+  ASSERT_NE(mkdtemp(tmpl), nullptr);
+  const std::string dir = std::string(tmpl) + "/state";
+  SavedMapState saved;
+  saved.estimator = first->est.state();
+  saved.image_width_px = seq->rig.width;
+  saved.image_height_px = seq->rig.height;
+  saved.next_sequence_frame = half;
+  MapStateFile::write(dir, saved, first->est.map(), &first->ortho, &first->residual);
+  ASSERT_GT(first->est.map().tileCount(), 0u);
+  ASSERT_FALSE(saved.estimator.previous_obstacles.empty());
+  ASSERT_GT(cv::countNonZero(saved.estimator.previous_obstacles[0]), 10000);  // the cars: 49,296 pixels
+
+  const auto second = makeRun();
+  const SavedMapState back = MapStateFile::read(dir, &second->est.map(), &second->ortho, &second->residual);
+  EXPECT_EQ(back.next_sequence_frame, half);
+  second->est.restore(back.estimator);
+  EXPECT_TRUE(second->est.initialized());
+  process(second.get(), half, n);
+  for (int k = half; k < n; ++k) {
+    const FrameResult& a = whole->results[static_cast<size_t>(k)];
+    const FrameResult& b = second->results[static_cast<size_t>(k - half)];
+    EXPECT_EQ(b.frame_index, a.frame_index) << "frame " << k;
+    EXPECT_EQ(b.camera0_T_camera.matrix(), a.camera0_T_camera.matrix()) << "frame " << k;
+    EXPECT_EQ(b.photometric[1].gain, a.photometric[1].gain) << "frame " << k;
+    EXPECT_EQ(b.fused_vertices, a.fused_vertices) << "frame " << k;
+  }
+  const GroundGrid g = whole->est.map().bounds();
+  ASSERT_TRUE(second->est.map().bounds().sameLayout(g));
+  for (auto l : {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance, ElevationMap::Layer::kObservations,
+                 ElevationMap::Layer::kLastUpdate, ElevationMap::Layer::kObstacle, ElevationMap::Layer::kObstacleHeight})
+    EXPECT_TRUE(sameLayer(whole->est.map().layer(l, g), second->est.map().layer(l, g))) << "layer " << static_cast<int>(l);
+  EXPECT_TRUE(sameLayer(whole->ortho.sample(g), second->ortho.sample(g)));
+  for (auto l : {PhotometricResidualMap::Layer::kResidual, PhotometricResidualMap::Layer::kOutlierRate})
+    EXPECT_TRUE(sameLayer(whole->residual.layer(l, g), second->residual.layer(l, g)));
+
+  // The map alone (no restore) leaves the estimator uninitialized: its next frame would start a
+  // new ground frame, which is why the state is saved with the map.
+  const auto map_only = makeRun();
+  MapStateFile::read(dir, &map_only->est.map());
+  EXPECT_FALSE(map_only->est.initialized());
+
+  // A state that does not fit is refused with the reason, and the estimator is left as it was.
+  IncrementalEstimator other(sim::StereoRenderer::kittiLikeRig(0.5), options);
+  try {
+    other.restore(back.estimator);
+    ADD_FAILURE() << "a state of other images was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("the calibration"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(other.initialized());
+  ElevationMapOptions coarse;
+  coarse.resolution_m = 1.0;
+  ElevationMap wrong_layout(coarse);
+  try {
+    MapStateFile::read(dir, &wrong_layout);
+    ADD_FAILURE() << "a map of another resolution was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("grid_resolution_m"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(wrong_layout.tileCount(), 0u);
+  std::filesystem::remove(std::string(dir) + "/map/" + std::filesystem::directory_iterator(dir + "/map")->path().filename().string());
+  try {
+    ElevationMap m(first->est.map().options());
+    MapStateFile::read(dir, &m);
+    ADD_FAILURE() << "a map with a missing tile was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("tiles, state.yaml says"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(tmpl);
 }
 
 TEST(IncrementalEstimator, DroppedFramesCostLittle) {

@@ -72,7 +72,12 @@ class ElevationMap {
   cv::Mat layer(Layer which, const GroundGrid& window) const;
 
   /// Loads archived tiles back (e.g. to export the whole drive); returns how many were read.
+  /// A tile already in memory is replaced by its archived copy.
   int loadArchive(const std::string& directory);
+  /// Writes every tile in memory to `directory` (which must exist) in the archive's format, one
+  /// file per tile, so that loadArchive() restores the map (a map saved to be continued later);
+  /// returns how many were written. Throws std::runtime_error when a file cannot be written.
+  int saveTiles(const std::string& directory) const;
 
   void clear();
   size_t tileCount() const { return tiles_.size(); }
@@ -99,6 +104,7 @@ class ElevationMap {
   Tile* tileFor(int lattice_row, int lattice_col, bool create, int* index);
   const Tile* tileFor(int lattice_row, int lattice_col, int* index) const;
   void archive(Key k, const Tile& t) const;
+  void writeTile(const std::string& directory, Key k, const Tile& t) const;
 
   ElevationMapOptions options_;
   std::unordered_map<Key, Tile> tiles_;

@@ -19,6 +19,7 @@
 
 #include "stereo_ground_dem/DisparityPlaneFit.hpp"
 #include "stereo_ground_dem/ElevationMap.hpp"
+#include "stereo_ground_dem/EstimatorState.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/MotionPredictor.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
@@ -177,6 +178,14 @@ class IncrementalEstimator {
   const IncrementalEstimatorOptions& options() const { return options_; }
   /// Forgets everything (map, ground frame, trajectory).
   void reset();
+  /// What the next frame depends on besides the map (EstimatorState.hpp). The images are shared,
+  /// not copied (the estimator never writes into them).
+  EstimatorState state() const;
+  /// Continues from a saved state (with the map loaded separately into map()): the next frame is
+  /// processed exactly as if it had followed the saved one in the same run. Throws
+  /// std::invalid_argument, naming the problem, when the state does not fit this estimator (image
+  /// size, pyramid levels, non-finite poses); the estimator is then unchanged.
+  void restore(const EstimatorState& state);
 
   /// The disparity [px] the fused map implies at every pixel of a left camera at ground_T_camera
   /// (0 where there is no surface), at full resolution. Requires initialized().

@@ -9,13 +9,19 @@
 /// costs only the tiles the next frame touches. use_count() can only drop meanwhile (copies are made
 /// on the writer's thread), which at worst clones once too often.
 ///
-/// `Tile` needs a constructor Tile(size_t nodes) that fills it with "unknown".
+/// `Tile` needs a constructor Tile(size_t nodes) that fills it with "unknown", and for write() /
+/// read() a `template <class Self, class F> static void forEachBuffer(Self& tile, F f)` that calls
+/// f(std::vector<T>&) on each of its per-node arrays.
 
 #include <atomic>
 #include <climits>
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <istream>
+#include <ostream>
+#include <stdexcept>
+#include <string>
 #include <unordered_map>
 
 namespace stereo_ground_dem {
@@ -103,10 +109,56 @@ class LatticeTiles {
 
   void clear() { tiles_.clear(); }
   size_t size() const { return tiles_.size(); }
+
+  /// Every tile to `out` (binary, host byte order): a header (magic, tile size, resolution, tile
+  /// count), then per tile its key and the arrays forEachBuffer lists.
+  void write(std::ostream& out) const {
+    const std::int64_t header[2] = {tile_size_, static_cast<std::int64_t>(tiles_.size())};
+    out.write(kMagic, sizeof(kMagic));
+    out.write(reinterpret_cast<const char*>(header), sizeof(header));
+    out.write(reinterpret_cast<const char*>(&resolution_m_), sizeof(resolution_m_));
+    for (const auto& [k, tile] : tiles_) {
+      out.write(reinterpret_cast<const char*>(&k), sizeof(k));
+      Tile::forEachBuffer(static_cast<const Tile&>(*tile), [&](const auto& v) {
+        out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(v[0])));
+      });
+    }
+  }
+  /// Replaces the tiles with what write() wrote; throws std::runtime_error (and keeps the tiles)
+  /// when the stream is not such a record, has another tile size or resolution, or is truncated.
+  void read(std::istream& in) {
+    char magic[sizeof(kMagic)] = {};
+    std::int64_t header[2] = {0, 0};
+    double resolution = 0.0;
+    in.read(magic, sizeof(magic));
+    in.read(reinterpret_cast<char*>(header), sizeof(header));
+    in.read(reinterpret_cast<char*>(&resolution), sizeof(resolution));
+    if (!in || std::string(magic, sizeof(magic)) != std::string(kMagic, sizeof(kMagic)))
+      throw std::runtime_error("not a tile record of this program");
+    if (header[0] != tile_size_ || std::abs(resolution - resolution_m_) > 1e-9)
+      throw std::runtime_error("tiles of " + std::to_string(header[0]) + " nodes at " + std::to_string(resolution) +
+                               " m, this map has " + std::to_string(tile_size_) + " at " +
+                               std::to_string(resolution_m_) + " m");
+    if (header[1] < 0 || header[1] > (1LL << 24)) throw std::runtime_error("implausible tile count");
+    const size_t n = static_cast<size_t>(tile_size_) * static_cast<size_t>(tile_size_);
+    std::unordered_map<Key, std::shared_ptr<Tile>> tiles;
+    for (std::int64_t t = 0; t < header[1]; ++t) {
+      Key k = 0;
+      in.read(reinterpret_cast<char*>(&k), sizeof(k));
+      auto tile = std::make_shared<Tile>(n);
+      Tile::forEachBuffer(*tile, [&](auto& v) {
+        in.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof(v[0])));
+      });
+      if (!in) throw std::runtime_error("the tile record is truncated");
+      tiles[k] = std::move(tile);
+    }
+    tiles_ = std::move(tiles);
+  }
   int tileSize() const { return tile_size_; }
 
  private:
   using Key = std::int64_t;
+  static constexpr char kMagic[8] = {'S', 'G', 'D', 'L', 'T', 'I', 'L', '1'};
   static Key key(long long tile_row, long long tile_col) {
     return static_cast<Key>((static_cast<std::uint64_t>(static_cast<std::uint32_t>(tile_row)) << 32) |
                             static_cast<std::uint32_t>(tile_col));

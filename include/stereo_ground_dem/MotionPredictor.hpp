@@ -54,11 +54,16 @@ class MotionPredictor {
   void update(const Eigen::Isometry3d& camera_T_ground, double stamp_s);
   /// After a failure: the velocity is no longer trusted (the last pose stays).
   void forgetVelocity() { velocity_known_ = false; }
+  /// Puts back a state read from lastPose(), lastStamp(), velocity(), lastGap() and
+  /// velocityKnown() (a saved map continued in another run).
+  void restore(const Eigen::Isometry3d& camera_T_ground, double stamp_s, const Vector6d& velocity, double gap_s,
+               bool velocity_known);
 
   bool velocityKnown() const { return velocity_known_; }
   const Vector6d& velocity() const { return velocity_; }  ///< twist per second, camera frame
   const Eigen::Isometry3d& lastPose() const { return last_camera_T_ground_; }
   double lastStamp() const { return last_stamp_s_; }
+  double lastGap() const { return last_gap_s_; }  ///< the stamp gap the velocity was measured over [s]
   /// The time since the last pose, or the nominal period when stamps do not increase [s].
   double gap(double stamp_s) const;
 

@@ -25,8 +25,10 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <istream>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <ostream>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -84,6 +86,12 @@ class OrthoTexture {
   int evictFarFrom(double x, double y);
   void clear();
 
+  /// The texture (tiles and exposure reference) as a binary record, for a map continued in a
+  /// later run; read() replaces this texture with one (std::runtime_error when it does not fit
+  /// this texture's resolution and tile size, or is truncated).
+  void write(std::ostream& out) const;
+  void read(std::istream& in);
+
   /// The affine map from the current left image's grey levels to the first frame's.
   const PhotometricParams& toReference() const { return to_reference_; }
   size_t tileCount() const { return tiles_.size(); }
@@ -96,6 +104,12 @@ class OrthoTexture {
     std::vector<float> value;    ///< grey [reference exposure], NaN unknown
     std::vector<float> quality;  ///< image pixels per texel side of the stored view
     std::vector<uint8_t> views;  ///< views averaged into value (0: unknown)
+    template <class Self, class F>
+    static void forEachBuffer(Self& t, F f) {
+      f(t.value);
+      f(t.quality);
+      f(t.views);
+    }
   };
   bool knownExtent(long long* i0, long long* i1, long long* j0, long long* j1) const;
 

@@ -25,7 +25,9 @@
 /// copies share tiles (LatticeTiles).
 
 #include <Eigen/Geometry>
+#include <istream>
 #include <opencv2/core.hpp>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -81,6 +83,12 @@ class PhotometricResidualMap {
   int evictFarFrom(double x, double y) { return tiles_.evictFarFrom(x, y, options_.keep_radius_m); }
   /// Forgets everything, the previous frame included.
   void clear();
+
+  /// The cells, the previous frame (image and pose) and the last median as a binary record, for a
+  /// map continued in a later run; read() replaces this map's with one (std::runtime_error when it
+  /// does not fit the resolution and tile size, or is truncated).
+  void write(std::ostream& out) const;
+  void read(std::istream& in);
   size_t tileCount() const { return tiles_.size(); }
   size_t memoryBytes() const {
     return tiles_.size() * static_cast<size_t>(options_.tile_size) * static_cast<size_t>(options_.tile_size) *
@@ -97,6 +105,12 @@ class PhotometricResidualMap {
     std::vector<float> residual;      ///< [grey], NaN unknown
     std::vector<float> outlier_rate;  ///< [0..1]
     std::vector<uint16_t> observations;
+    template <class Self, class F>
+    static void forEachBuffer(Self& t, F f) {
+      f(t.residual);
+      f(t.outlier_rate);
+      f(t.observations);
+    }
   };
 
   PhotometricResidualOptions options_;

@@ -89,6 +89,15 @@ class RectificationMonitor {
   VerticalMisalignment estimate() const;
   int pairs() const { return pairs_; }
   void reset();
+  /// The accumulated normal equations of c0..c5 (what estimate() solves), to save and restore().
+  const Eigen::Matrix<double, 6, 6>& information() const { return information_; }
+  const Eigen::Matrix<double, 6, 1>& informationVector() const { return information_vector_; }
+  void restore(const Eigen::Matrix<double, 6, 6>& information, const Eigen::Matrix<double, 6, 1>& information_vector,
+               int pairs) {
+    information_ = information;
+    information_vector_ = information_vector;
+    pairs_ = pairs;
+  }
 
   const RectificationMonitorOptions& options() const { return options_; }
 

@@ -157,6 +157,7 @@ class StereoEstimator {
     rectification_set_ = true;
   }
   void clearRectification() { rectification_set_ = false; }
+  bool rectificationSet() const { return rectification_set_; }
   const VerticalMisalignment& rectification() const { return rectification_; }
 
   /// Builds the pyramid the estimators use for an input image.

@@ -124,11 +124,10 @@ void ElevationMap::updateObstacles(const GroundGrid& w, const std::vector<uint8_
   }
 }
 
-void ElevationMap::archive(Key k, const Tile& t) const {
-  if (options_.archive_directory.empty()) return;
+void ElevationMap::writeTile(const std::string& directory, Key k, const Tile& t) const {
   const int tr = static_cast<int>(k >> 32);
   const int tc = static_cast<int>(static_cast<std::int32_t>(k & 0xffffffff));
-  const std::string path = options_.archive_directory + "/tile_" + std::to_string(tr) + "_" + std::to_string(tc) + ".bin";
+  const std::string path = directory + "/tile_" + std::to_string(tr) + "_" + std::to_string(tc) + ".bin";
   std::ofstream out(path, std::ios::binary);
   if (!out) throw std::runtime_error("ElevationMap: cannot write archive tile '" + path + "'");
   const std::int32_t header[4] = {tr, tc, options_.tile_size, 0};
@@ -143,6 +142,18 @@ void ElevationMap::archive(Key k, const Tile& t) const {
   out.write(reinterpret_cast<const char*>(t.last_update.data()), n * 4);
   out.write(reinterpret_cast<const char*>(t.obstacle_score.data()), n * 4);
   out.write(reinterpret_cast<const char*>(t.obstacle_height.data()), n * 4);
+  out.close();
+  if (!out) throw std::runtime_error("ElevationMap: cannot write archive tile '" + path + "' (disk full?)");
+}
+
+void ElevationMap::archive(Key k, const Tile& t) const {
+  if (options_.archive_directory.empty()) return;
+  writeTile(options_.archive_directory, k, t);
+}
+
+int ElevationMap::saveTiles(const std::string& directory) const {
+  for (const auto& kv : tiles_) writeTile(directory, kv.first, kv.second);
+  return static_cast<int>(tiles_.size());
 }
 
 int ElevationMap::loadArchive(const std::string& directory) {

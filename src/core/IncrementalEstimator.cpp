@@ -118,6 +118,94 @@ void IncrementalEstimator::reset() {
   consecutive_failures_ = 0;
 }
 
+EstimatorState IncrementalEstimator::state() const {
+  EstimatorState s;
+  s.initialized = initialized_;
+  s.frame_counter = frame_counter_;
+  s.ground_T_camera0 = ground_T_camera0_;
+  s.ground_T_camera = ground_T_camera_;
+  s.last_camera_T_ground = predictor_.lastPose();
+  s.last_stamp_s = predictor_.lastStamp();
+  s.velocity = predictor_.velocity();
+  s.velocity_gap_s = predictor_.lastGap();
+  s.velocity_known = predictor_.velocityKnown();
+  s.residual_level_grey = residual_level_;
+  s.prealign_level = prealign_level_;
+  s.last_photometric = last_photometric_;
+  s.consecutive_failures = consecutive_failures_;
+  s.failures_total = failures_total_;
+  s.recoveries = recoveries_;
+  s.rejected_total = rejected_total_;
+  s.rectification_information = rectification_.information();
+  s.rectification_information_vector = rectification_.informationVector();
+  s.rectification_pairs = rectification_.pairs();
+  s.rectification = stereo_.rectification();
+  s.rectification_set = stereo_.rectificationSet();
+  if (prev_left_) s.previous_left = prev_left_->level(0).image;
+  if (prev_right_) s.previous_right = prev_right_->level(0).image;
+  s.previous_obstacles = prev_obstacles_;
+  s.last_left = last_left_level0_;
+  return s;
+}
+
+void IncrementalEstimator::restore(const EstimatorState& s) {
+  auto fail = [](const std::string& why) { throw std::invalid_argument("saved estimator state: " + why); };
+  const auto finite = [](const Eigen::Isometry3d& t) { return t.matrix().allFinite(); };
+  if (!finite(s.ground_T_camera0) || !finite(s.ground_T_camera) || !finite(s.last_camera_T_ground) ||
+      !s.velocity.allFinite() || !std::isfinite(s.last_stamp_s) || !std::isfinite(s.velocity_gap_s) ||
+      !std::isfinite(s.residual_level_grey) || !std::isfinite(s.prealign_level))
+    fail("a pose, the velocity, the stamp or a residual level is not finite");
+  if (s.frame_counter < 0 || s.consecutive_failures < 0 || s.rectification_pairs < 0) fail("negative counter");
+  const auto checkImage = [&](const cv::Mat& m, const char* name) {
+    if (m.empty()) return;
+    if (m.type() != CV_32FC1) fail(std::string(name) + " image is not single-channel float");
+    if ((rig_.width > 0 && m.cols != rig_.width) || (rig_.height > 0 && m.rows != rig_.height)) {
+      std::ostringstream os;
+      os << name << " image is " << m.cols << "x" << m.rows << ", the calibration " << rig_.width << "x"
+         << rig_.height;
+      fail(os.str());
+    }
+  };
+  checkImage(s.previous_left, "previous left");
+  checkImage(s.previous_right, "previous right");
+  checkImage(s.last_left, "last left");
+  if (s.initialized && (s.previous_left.empty() || s.previous_right.empty()))
+    fail("initialized without the previous images");
+  if (s.previous_left.size() != s.previous_right.size()) fail("previous left and right images differ in size");
+  std::unique_ptr<ImagePyramid> pl, pr;
+  if (!s.previous_left.empty()) {
+    // the saved level 0 is already pre-smoothed: rebuild the levels without smoothing it again
+    pl = std::make_unique<ImagePyramid>(s.previous_left, stereo_.pyramidLevels(), ImagePyramid::ColorOrder::kBgr, 0.0);
+    pr = std::make_unique<ImagePyramid>(s.previous_right, stereo_.pyramidLevels(), ImagePyramid::ColorOrder::kBgr, 0.0);
+  }
+  for (size_t l = 0; l < s.previous_obstacles.size(); ++l) {
+    const cv::Mat& m = s.previous_obstacles[l];
+    if (m.empty()) continue;
+    if (m.type() != CV_8UC1 || !pl || static_cast<int>(l) >= pl->levels() ||
+        m.size() != pl->level(static_cast<int>(l)).image.size())
+      fail("obstacle mask of level " + std::to_string(l) + " does not fit the images");
+  }
+  initialized_ = s.initialized;
+  frame_counter_ = s.frame_counter;
+  ground_T_camera0_ = s.ground_T_camera0;
+  ground_T_camera_ = s.ground_T_camera;
+  predictor_.restore(s.last_camera_T_ground, s.last_stamp_s, s.velocity, s.velocity_gap_s, s.velocity_known);
+  residual_level_ = s.residual_level_grey;
+  prealign_level_ = s.prealign_level;
+  last_photometric_ = s.last_photometric;
+  consecutive_failures_ = s.consecutive_failures;
+  failures_total_ = s.failures_total;
+  recoveries_ = s.recoveries;
+  rejected_total_ = s.rejected_total;
+  rectification_.restore(s.rectification_information, s.rectification_information_vector, s.rectification_pairs);
+  if (s.rectification_set) stereo_.setRectification(s.rectification);
+  else stereo_.clearRectification();
+  prev_left_ = std::move(pl);
+  prev_right_ = std::move(pr);
+  prev_obstacles_ = s.previous_obstacles;
+  last_left_level0_ = s.last_left;
+}
+
 std::string IncrementalEstimator::checkImages(const ImagePyramid& left, const ImagePyramid& right) const {
   const IncrementalEstimatorOptions& o = options_;
   const char* names[2] = {"left", "right"};

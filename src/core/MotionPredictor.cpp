@@ -43,6 +43,15 @@ void MotionPredictor::setPose(const Eigen::Isometry3d& camera_T_ground, double s
   velocity_known_ = false;
 }
 
+void MotionPredictor::restore(const Eigen::Isometry3d& camera_T_ground, double stamp_s, const Vector6d& velocity,
+                              double gap_s, bool velocity_known) {
+  last_camera_T_ground_ = camera_T_ground;
+  last_stamp_s_ = stamp_s;
+  velocity_ = velocity;
+  last_gap_s_ = gap_s;
+  velocity_known_ = velocity_known;
+}
+
 void MotionPredictor::update(const Eigen::Isometry3d& camera_T_ground, double stamp_s) {
   const double dt = gap(stamp_s);
   velocity_ = Se3::log(camera_T_ground * last_camera_T_ground_.inverse()) / dt;

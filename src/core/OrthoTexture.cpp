@@ -235,4 +235,24 @@ size_t OrthoTexture::memoryBytes() const {
   return tiles_.size() * per;
 }
 
+void OrthoTexture::write(std::ostream& out) const {
+  const double reference[2] = {to_reference_.gain, to_reference_.bias_grey};
+  const std::int32_t has = has_reference_ ? 1 : 0;
+  out.write(reinterpret_cast<const char*>(reference), sizeof(reference));
+  out.write(reinterpret_cast<const char*>(&has), sizeof(has));
+  tiles_.write(out);
+}
+
+void OrthoTexture::read(std::istream& in) {
+  double reference[2] = {1.0, 0.0};
+  std::int32_t has = 0;
+  in.read(reinterpret_cast<char*>(reference), sizeof(reference));
+  in.read(reinterpret_cast<char*>(&has), sizeof(has));
+  if (!in || !std::isfinite(reference[0]) || !std::isfinite(reference[1]) || reference[0] <= 0.0)
+    throw std::runtime_error("ortho-texture record: bad exposure reference");
+  tiles_.read(in);  // throws before anything changes
+  to_reference_ = {reference[0], reference[1]};
+  has_reference_ = has != 0;
+}
+
 }  // namespace stereo_ground_dem

@@ -183,4 +183,35 @@ void PhotometricResidualMap::clear() {
   last_median_ = std::numeric_limits<double>::quiet_NaN();
 }
 
+void PhotometricResidualMap::write(std::ostream& out) const {
+  const std::int32_t size[2] = {previous_left_.rows, previous_left_.cols};
+  out.write(reinterpret_cast<const char*>(size), sizeof(size));
+  for (int r = 0; r < previous_left_.rows; ++r)
+    out.write(reinterpret_cast<const char*>(previous_left_.ptr<float>(r)),
+              static_cast<std::streamsize>(previous_left_.cols * sizeof(float)));
+  const Eigen::Matrix4d pose = previous_camera_T_ground_.matrix();
+  out.write(reinterpret_cast<const char*>(pose.data()), sizeof(double) * 16);
+  out.write(reinterpret_cast<const char*>(&last_median_), sizeof(last_median_));
+  tiles_.write(out);
+}
+
+void PhotometricResidualMap::read(std::istream& in) {
+  std::int32_t size[2] = {0, 0};
+  in.read(reinterpret_cast<char*>(size), sizeof(size));
+  if (!in || size[0] < 0 || size[1] < 0 || static_cast<long long>(size[0]) * size[1] > (1LL << 28))
+    throw std::runtime_error("residual record: bad previous image size");
+  cv::Mat previous(size[0], size[1], CV_32FC1);
+  for (int r = 0; r < previous.rows; ++r)
+    in.read(reinterpret_cast<char*>(previous.ptr<float>(r)), static_cast<std::streamsize>(previous.cols * sizeof(float)));
+  Eigen::Matrix4d pose;
+  double median = 0.0;
+  in.read(reinterpret_cast<char*>(pose.data()), sizeof(double) * 16);
+  in.read(reinterpret_cast<char*>(&median), sizeof(median));
+  if (!in || !pose.allFinite()) throw std::runtime_error("residual record: truncated or a non-finite pose");
+  tiles_.read(in);  // throws before anything changes
+  previous_left_ = previous;
+  previous_camera_T_ground_.matrix() = pose;
+  last_median_ = median;
+}
+
 }  // namespace stereo_ground_dem

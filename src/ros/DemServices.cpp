@@ -2,10 +2,12 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <sstream>
 
 #include "stereo_ground_dem/io/DemExporter.hpp"
+#include "stereo_ground_dem/io/MapStateFile.hpp"
 #include "stereo_ground_dem/ros/HeightGridConverter.hpp"
 #include "stereo_ground_dem/ros/MapWindowSampler.hpp"
 
@@ -27,12 +29,14 @@ void DemServices::advertise(ros::NodeHandle& mt_pnh) {
   srv_reset_ = mt_pnh.advertiseService("reset", &DemServices::reset, this);
   srv_save_ = mt_pnh.advertiseService("save_map", &DemServices::saveMap, this);
   srv_submap_ = mt_pnh.advertiseService("get_submap", &DemServices::getSubmap, this);
+  srv_load_ = mt_pnh.advertiseService("load_map", &DemServices::loadMap, this);
 }
 
 void DemServices::shutdown() {
   srv_reset_.shutdown();
   srv_save_.shutdown();
   srv_submap_.shutdown();
+  srv_load_.shutdown();
 }
 
 void DemServices::setTraversability(const TraversabilityOptions& options) {
@@ -84,11 +88,35 @@ bool DemServices::saveMap(SaveMap::Request& req, SaveMap::Response& res) {
     const std::string base =
         dir.empty() || dir[0] == '/' ? dir : std::string(getcwd(cwd, sizeof(cwd)) ? cwd : ".") + "/" + dir;
     for (const std::string& n : names) res.files.push_back(n.empty() || n[0] == '/' ? n : base + "/" + n);
+    if (snap->estimator) {  // what ~load_map (or dem_offline --resume) continues from
+      SavedMapState state;
+      state.estimator = *snap->estimator;
+      state.trajectory_xy = snap->trajectory_xy;
+      state.image_width_px = snap->image_width_px;
+      state.image_height_px = snap->image_height_px;
+      MapStateFile::write(dir + "/state", state, *snap->map, snap->ortho.get(), snap->residual.get());
+      res.files.push_back(base + "/state");
+    }
     res.success = true;
     res.message = "wrote " + std::to_string(res.files.size()) + " files to " + base;
   } catch (const std::exception& e) {
     res.success = false;
     res.message = e.what();
+  }
+  return true;
+}
+
+bool DemServices::loadMap(LoadMap::Request& req, LoadMap::Response& res) {
+  const std::string dir = req.directory.empty() ? options_.save_directory : req.directory;
+  auto done = worker_.requestLoad(dir);
+  // the worker loads between frames (a frame takes ~0.2 s; a large map ~1 s to read)
+  if (done.wait_for(std::chrono::seconds(10)) == std::future_status::ready) {
+    const std::pair<bool, std::string> r = done.get();
+    res.success = r.first;
+    res.message = r.second;
+  } else {
+    res.success = true;
+    res.message = "queued: '" + dir + "' is loaded with the first stereo frame (no camera_info yet; diagnostics say how it went)";
   }
   return true;
 }

@@ -3,6 +3,9 @@
 #include <ros/ros.h>
 
 #include <cmath>
+#include <sstream>
+
+#include "stereo_ground_dem/io/MapStateFile.hpp"
 
 namespace stereo_ground_dem {
 
@@ -78,6 +81,89 @@ bool DemWorker::optionsPending() const {
   return options_changed_ && initialized_;
 }
 
+std::future<std::pair<bool, std::string>> DemWorker::requestLoad(const std::string& directory) {
+  auto r = std::make_unique<LoadRequest>();
+  r->directory = directory;
+  auto done = r->done.get_future();
+  {
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    if (load_request_) load_request_->done.set_value({false, "superseded by another ~load_map request"});
+    load_request_ = std::move(r);
+  }
+  slot_.wake();
+  return done;
+}
+
+void DemWorker::applyLoad() {
+  std::unique_ptr<LoadRequest> r;
+  long generation = 0;
+  {
+    std::lock_guard<std::mutex> lock(control_mutex_);
+    if (!load_request_ || !estimator_) return;  // without a calibration: with the first frame
+    r = std::move(load_request_);
+    generation = reset_requested_;
+  }
+  try {
+    const std::string dir =
+        MapStateFile::exists(r->directory + "/state") ? r->directory + "/state" : r->directory;
+    ElevationMap map(estimator_->map().options());
+    std::unique_ptr<OrthoTexture> ortho = ortho_ ? std::make_unique<OrthoTexture>(ortho_->options()) : nullptr;
+    std::unique_ptr<PhotometricResidualMap> residual =
+        residual_ ? std::make_unique<PhotometricResidualMap>(map.options().resolution_m, residual_->options()) : nullptr;
+    SavedMapState saved = MapStateFile::read(dir, &map, ortho.get(), residual.get());
+    const StereoRig& rig = estimator_->rig();
+    if (saved.image_width_px != rig.width || saved.image_height_px != rig.height) {
+      std::ostringstream os;
+      os << "cannot resume from '" << dir << "': saved for " << saved.image_width_px << "x" << saved.image_height_px
+         << " images, the camera has " << rig.width << "x" << rig.height;
+      throw std::runtime_error(os.str());
+    }
+    if (!saved.estimator.initialized) throw std::runtime_error("cannot resume from '" + dir + "': nothing was mapped");
+    auto est = std::make_unique<IncrementalEstimator>(rig, estimator_->options());
+    est->map() = std::move(map);
+    est->restore(saved.estimator);  // validates before anything changes here
+    estimator_ = std::move(est);
+    ortho_ = std::move(ortho);
+    residual_ = std::move(residual);
+    loaded_state_ = std::make_unique<EstimatorState>(saved.estimator);
+    publisher_.reset();
+    trajectory_xy_ = saved.trajectory_xy;
+    fused_frames_ = 0;
+    last_processed_stamp_s_ = -1.0;
+    {
+      std::lock_guard<std::mutex> lock(control_mutex_);
+      initialized_ = true;
+    }
+    publishSnapshot(ros::Time(0), generation);
+    const Eigen::Vector3d t = saved.estimator.ground_T_camera.translation();
+    std::ostringstream os;
+    os << "loaded " << estimator_->map().tileCount() << " map tiles from '" << dir << "'; the camera continues from (x "
+       << t.x() << ", y " << t.y() << ", z " << t.z() << ") m";
+    diagnostics_.restarted(os.str(), false);
+    r->done.set_value({true, os.str()});
+  } catch (const std::exception& e) {
+    diagnostics_.problem(std::string("~load_map: ") + e.what(), true);
+    r->done.set_value({false, e.what()});
+  }
+}
+
+void DemWorker::publishSnapshot(const ros::Time& stamp, long generation) {
+  auto snap = std::make_shared<MapSnapshot>();
+  const ElevationMap& map = estimator_->map();
+  snap->map = std::make_shared<const ElevationMap>(map);
+  if (ortho_) snap->ortho = std::make_shared<const OrthoTexture>(*ortho_);
+  if (residual_) snap->residual = std::make_shared<const PhotometricResidualMap>(*residual_);
+  snap->ground_T_camera0 = estimator_->groundTCamera0();
+  snap->trajectory_xy = trajectory_xy_;
+  snap->stamp = stamp;
+  snap->frame_count = fused_frames_;
+  snap->estimator = std::make_shared<const EstimatorState>(estimator_->state());
+  snap->image_width_px = estimator_->rig().width;
+  snap->image_height_px = estimator_->rig().height;
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  if (reset_requested_ == generation) snapshot_ = snap;
+}
+
 std::shared_ptr<const MapSnapshot> DemWorker::snapshot() const {
   std::lock_guard<std::mutex> lock(control_mutex_);
   return snapshot_;
@@ -89,6 +175,7 @@ void DemWorker::run() {
     const LatestFrameSlot<StereoFrame>::Taken t = slot_.take(&frame);
     if (t == LatestFrameSlot<StereoFrame>::Taken::kClosed) break;
     applyReset();
+    applyLoad();
     if (t == LatestFrameSlot<StereoFrame>::Taken::kItem) {
       process(frame);
       frame = StereoFrame();  // release the image messages
@@ -119,6 +206,7 @@ void DemWorker::applyReset() {
   }
   if (reset) {
     publisher_.reset();
+    loaded_state_.reset();
     if (ortho_) ortho_->clear();
     if (residual_) residual_->clear();
     trajectory_xy_.clear();
@@ -161,8 +249,25 @@ void DemWorker::process(StereoFrame& f) {
     const StereoRig& r = f.rig;
     ROS_INFO_NAMED(logger_, "stereo rig from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f px, baseline %.4f m",
                    r.width, r.height, r.fx, r.fy, r.cx, r.cy, r.baseline_m);
+    loaded_state_.reset();
+    applyLoad();  // a ~load_map that waited for the calibration
   }
   const double stamp_s = f.stamp.toSec();
+  if (loaded_state_) {
+    // A loaded map continues in this run's time: the saved velocity and stamp belong to the old
+    // one, so the motion is searched from the saved pose as after a failure.
+    EstimatorState s = *loaded_state_;
+    loaded_state_.reset();
+    s.last_stamp_s = stamp_s - estimator_->options().nominal_frame_period_s;
+    s.velocity.setZero();
+    s.velocity_gap_s = 0.0;
+    s.velocity_known = false;
+    try {
+      estimator_->restore(s);
+    } catch (const std::exception& e) {  // validated at the load; never expected
+      diagnostics_.problem(std::string("~load_map: ") + e.what(), true);
+    }
+  }
   // No velocity is known yet (this frame initializes the map, or is the first tracked one, or
   // follows a failure): the next frame processed must follow this one closely, so the slot holds
   // the first frame that arrives meanwhile instead of the newest. With the newest, the first steps
@@ -227,16 +332,7 @@ void DemWorker::process(StereoFrame& f) {
       publisher_.publishAttitude(record.attitude, f.stamp, f.camera_frame);
     }
     if (fr.status != FrameStatus::kFailed) ++fused_frames_;
-    auto snap = std::make_shared<MapSnapshot>();
-    snap->map = std::make_shared<const ElevationMap>(map);
-    if (ortho_) snap->ortho = std::make_shared<const OrthoTexture>(*ortho_);
-    if (residual_) snap->residual = std::make_shared<const PhotometricResidualMap>(*residual_);
-    snap->ground_T_camera0 = estimator_->groundTCamera0();
-    snap->trajectory_xy = trajectory_xy_;
-    snap->stamp = f.stamp;
-    snap->frame_count = fused_frames_;
-    std::lock_guard<std::mutex> lock(control_mutex_);
-    if (reset_requested_ == generation) snapshot_ = snap;
+    publishSnapshot(f.stamp, generation);
   }
   record.latency_ms = (ros::Time::now() - f.stamp).toSec() * 1e3;
   record.map_tiles = map.tileCount();

@@ -2,12 +2,16 @@
 //
 //   dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE] [--cameras 0,1|2,3]
 //   dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--cameras 0,1|2,3] [--quiet]
+//               [--first-frame K] [--resume PREVIOUS_OUT]
 //
 // One-pair mode runs the stereo mode; sequence mode runs the incremental estimator over a
 // KITTI-style folder (KittiSequence). Both write dem.tif / dem.yaml / dem_disparity_NNNNNN.png and
 // pictures into OUT; errors are one line on stderr and a non-zero exit status. In sequence mode a
 // frame that cannot be read or is refused is skipped with a one-line warning and counted
 // (frames.csv status, summary.txt); the run succeeds when at least one frame was mapped.
+// A sequence run also saves the map and the estimator's state in OUT/state (MapStateFile);
+// `--resume PREVIOUS_OUT` continues that map from the frame after the one it stopped at (or from
+// --first-frame), as if the frames had come in one run.
 //
 // Images of any type GreyConverter accepts (8/16-bit grey, BGR, BGRA; 16-bit scaled by its bit
 // depth, `image_bit_depth` or detected from the first image) go through one GreyConverter.
@@ -43,6 +47,7 @@
 #include "stereo_ground_dem/io/DisparityPng.hpp"
 #include "stereo_ground_dem/io/ImageFileReader.hpp"
 #include "stereo_ground_dem/io/KittiSequence.hpp"
+#include "stereo_ground_dem/io/MapStateFile.hpp"
 #include "stereo_ground_dem/io/TrajectoryWriter.hpp"
 
 using namespace stereo_ground_dem;
@@ -52,10 +57,13 @@ namespace {
 const char* kUsage =
     "usage: dem_offline --left L.png --right R.png --calib FILE --out OUT [--config FILE] [--cameras P]\n"
     "       dem_offline --sequence DIR --out OUT [--frames N] [--config FILE] [--cameras P] [--quiet]\n"
+    "                   [--first-frame K] [--resume PREVIOUS_OUT]\n"
     "  --config FILE  YAML file of parameters (see config/kitti.yaml)\n"
     "  --cameras P    camera pair of a KITTI calibration: 0,1 (grey) or 2,3 (colour); default: grey\n"
     "                 when present, else colour\n"
-    "  --frames N     process the first N frames only\n"
+    "  --frames N     process N frames only\n"
+    "  --first-frame K  start at frame K of the sequence (default 0, or where --resume stopped)\n"
+    "  --resume DIR   continue the map a previous sequence run saved in DIR/state\n"
     "  --quiet        no per-frame progress lines\n"
     "       dem_offline --list-parameters [--config FILE]   every parameter (markdown table)\n";
 
@@ -79,6 +87,8 @@ struct Args {
   std::string left, right, calib, sequence, out, config;
   CalibrationReader::CameraPair cameras = CalibrationReader::CameraPair::kAuto;
   int frames = -1;
+  int first_frame = -1;  ///< -1: 0, or where the resumed run stopped
+  std::string resume;
   bool quiet = false;
   bool list_parameters = false;
 };
@@ -109,7 +119,15 @@ Args parse(int argc, char** argv) {
       const long n = std::strtol(v.c_str(), &end, 10);
       if (*end != '\0' || n < 1) throw std::invalid_argument("--frames needs a positive integer, got '" + v + "'");
       a.frames = static_cast<int>(n);
-    } else if (k == "--quiet") a.quiet = true;
+    } else if (k == "--first-frame") {
+      const std::string v = value();
+      char* end = nullptr;
+      const long n = std::strtol(v.c_str(), &end, 10);
+      if (v.empty() || *end != '\0' || n < 0 || n > 100000000)
+        throw std::invalid_argument("--first-frame needs a non-negative integer, got '" + v + "'");
+      a.first_frame = static_cast<int>(n);
+    } else if (k == "--resume") a.resume = value();
+    else if (k == "--quiet") a.quiet = true;
     else if (k == "--list-parameters") a.list_parameters = true;
     else if (k == "-h" || k == "--help") {
       std::cout << kUsage;
@@ -126,6 +144,8 @@ Args parse(int argc, char** argv) {
   if (pair && (a.left.empty() || a.right.empty() || a.calib.empty())) {
     throw std::invalid_argument("one-pair mode needs --left, --right and --calib");
   }
+  if (pair && (!a.resume.empty() || a.first_frame >= 0))
+    throw std::invalid_argument("--resume and --first-frame need --sequence");
   return a;
 }
 
@@ -283,8 +303,6 @@ int runSequence(const Args& a) {
   so.read_ground_truth = false;  // not needed for mapping; sgd_evaluate reads it
   const KittiSequence seq = KittiSequence::open(a.sequence, so);
   for (const std::string& w : seq.warnings()) warn(w);
-  const int n = a.frames > 0 ? std::min(a.frames, seq.size()) : seq.size();
-  checkOutputDirectory(a.out);
   o.estimator.motion_information = false;  // only the ROS odometry covariance uses it
   IncrementalEstimator est(seq.rig(), o.estimator);
   const GroundAttitudeEstimator ground_attitude(o.attitude);
@@ -294,6 +312,32 @@ int runSequence(const Args& a) {
   PhotometricResidualOptions residual_options = o.residual;
   residual_options.keep_radius_m = o.estimator.map.keep_radius_m;
   PhotometricResidualMap residual(est.map().options().resolution_m, residual_options);
+  // --resume: the previous run's map, layers and estimator state (OUT/state, or the state itself)
+  SavedMapState saved;
+  std::string resume_dir;
+  if (!a.resume.empty()) {
+    resume_dir = MapStateFile::exists(a.resume + "/state") ? a.resume + "/state" : a.resume;
+    saved = MapStateFile::read(resume_dir, &est.map(), ortho_options.enabled ? &ortho : nullptr,
+                               residual_options.enabled ? &residual : nullptr);
+    if (saved.image_width_px != seq.rig().width || saved.image_height_px != seq.rig().height) {
+      std::ostringstream os;
+      os << "cannot resume from '" << resume_dir << "': saved for " << saved.image_width_px << "x"
+         << saved.image_height_px << " images, this sequence has " << seq.rig().width << "x" << seq.rig().height;
+      throw std::runtime_error(os.str());
+    }
+    try {
+      est.restore(saved.estimator);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error("cannot resume from '" + resume_dir + "': " + e.what());
+    }
+  }
+  const int first = a.first_frame >= 0 ? a.first_frame : std::max(0, saved.next_sequence_frame);
+  if (first >= seq.size())
+    throw std::invalid_argument("the first frame " + std::to_string(first) + " is past the sequence's " +
+                                std::to_string(seq.size()) + " frames" +
+                                (a.resume.empty() ? std::string() : " (the resumed run stopped there)"));
+  const int n = a.frames > 0 ? std::min(a.frames, seq.size() - first) : seq.size() - first;
+  checkOutputDirectory(a.out);
   constexpr double kDeg = 180.0 / M_PI;
   GreyConverter conv(o.input);
   std::ofstream timing(a.out + "/timing.csv");
@@ -302,10 +346,10 @@ int runSequence(const Args& a) {
   frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
   std::vector<double> tum_stamps, ms_all;
-  std::vector<Eigen::Vector2d> xy;
+  std::vector<Eigen::Vector2d> xy = saved.trajectory_xy;
   int failures = 0, rejected = 0, unreadable = 0, mapped = 0, first_mapped = -1;
   cv::Mat disparity0, image0;
-  for (int i = 0; i < n; ++i) {
+  for (int i = first; i < first + n; ++i) {
     const double stamp = seq.stamp(i);
     cv::Mat left, right, grey_left, grey_right;
     std::string problem;
@@ -331,7 +375,7 @@ int runSequence(const Args& a) {
                       fr.status == FrameStatus::kRecovered;
     mapped += good;
     if (!good && fr.status != FrameStatus::kFailed) warn("frame " + std::to_string(i) + " skipped: " + fr.message);
-    if (fr.status == FrameStatus::kInitialized && first_mapped < 0) {
+    if (good && first_mapped < 0) {  // initialized, or the first of a resumed run
       first_mapped = i;
       disparity0 = est.surfaceDisparity(fr.ground_T_camera);
       image0 = left;
@@ -382,7 +426,7 @@ int runSequence(const Args& a) {
            << "\n";
     if (!a.quiet) {
       const Eigen::Vector3d t = fr.camera0_T_camera.translation();
-      std::printf("frame %4d/%d %7.1f ms  %-14s  x %7.2f y %7.2f z %7.2f m%s%s\n", i + 1, n, fr.time_ms, status.c_str(),
+      std::printf("frame %4d/%d %7.1f ms  %-14s  x %7.2f y %7.2f z %7.2f m%s%s\n", i + 1, first + n, fr.time_ms, status.c_str(),
                   t.x(), t.y(), t.z(), fr.message.empty() ? "" : "  ", fr.message.c_str());
       std::fflush(stdout);
     }
@@ -396,7 +440,8 @@ int runSequence(const Args& a) {
   const double median = sorted[sorted.size() / 2];
   const ElevationMap& map = est.map();
   std::ostringstream summary;
-  summary << "frames: " << n << "\nmapped: " << mapped << "\nfirst_mapped_frame: " << first_mapped
+  summary << "frames: " << n << "\nfirst_frame: " << first << "\nresumed_from: " << (resume_dir.empty() ? "-" : resume_dir)
+          << "\nmapped: " << mapped << "\nfirst_mapped_frame: " << first_mapped
           << "\nfailed: " << failures << "\nrejected_input: " << rejected << "\nunreadable: " << unreadable
           << "\nskipped: " << rejected + unreadable << "\nrecovered: " << est.recoveries()
           << "\ncameras: " << (seq.cameras() == CalibrationReader::CameraPair::kAuto ? "l,r" : CalibrationReader::name(seq.cameras())) << "\nimage_bit_depth: " << conv.bitDepth()
@@ -435,8 +480,19 @@ int runSequence(const Args& a) {
   dem.ground_T_camera0 = est.groundTCamera0();
   dem.trajectory_xy = xy;
   dem.extra = {{"mode", "incremental (sequence)"}, {"sequence", a.sequence},
-               {"first_mapped_frame", std::to_string(first_mapped)}};
+               {"first_mapped_frame", std::to_string(first_mapped)}, {"first_frame", std::to_string(first)},
+               {"resumed_from", resume_dir.empty() ? "-" : resume_dir}};
   DemExporter::write(a.out, dem);
+  // the map and the estimator's state, for --resume
+  SavedMapState state;
+  state.estimator = est.state();
+  state.trajectory_xy = xy;
+  state.sequence = a.sequence;
+  state.next_sequence_frame = first + n;
+  state.image_width_px = seq.rig().width;
+  state.image_height_px = seq.rig().height;
+  MapStateFile::write(a.out + "/state", state, map, ortho_options.enabled ? &ortho : nullptr,
+                      residual_options.enabled ? &residual : nullptr);
   const std::string disparity_name = frameFileName("dem_disparity", first_mapped, "png");
   DisparityPng::write(a.out + "/" + disparity_name, disparity0);
   writeOverlay(a.out + "/dem_disparity_overlay.png", image0, disparity0, conv.bitDepth());
@@ -445,7 +501,7 @@ int runSequence(const Args& a) {
               n, mapped, failures, rejected, unreadable, mean, median, peakMemoryMb());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
               "mesh.ply, traversability_confidence.tif, obstacles.tif, obstacle_height.tif, intensity.tif, ortho.tif, ortho.png, residual.tif, residual_outlier_rate.tif, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
-              "trajectory_tum.txt, timing.csv, frames.csv, summary.txt}\n",
+              "trajectory_tum.txt, timing.csv, frames.csv, summary.txt, state/}\n",
               a.out.c_str(), disparity_name.c_str());
   return 0;
 }

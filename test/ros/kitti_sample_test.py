@@ -4,7 +4,7 @@
 A bag is written at test time with kitti_to_bag (with the static base_link -> camera tf) and
 replayed frame by frame; checks one DEM per frame with every layer, finite heights, odometry and tf
 odom -> base_link, the latency from image stamp to DEM, and the services (get_submap, save_map
-against the offline runner's files, reset)."""
+against the offline runner's files, reset, load_map of the saved map and of the runner's)."""
 import os
 import sys
 import unittest
@@ -18,7 +18,7 @@ from std_srvs.srv import Trigger
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import sgd_rostest_support as sup  # noqa: E402
-from stereo_ground_dem.srv import GetSubmap, SaveMap  # noqa: E402
+from stereo_ground_dem.srv import GetSubmap, LoadMap, SaveMap  # noqa: E402
 
 # Measured: 0.037 m after the 6 frames (final position error 0.074 m); a 2x change either way fails.
 POSITION_STD_RANGE_M = (0.018, 0.075)
@@ -153,6 +153,8 @@ class KittiSampleTest(unittest.TestCase):
         out = os.path.join(self.tmp, 'saved')
         r = save(directory=out, pictures=True)
         self.assertTrue(r.success, r.message)
+        self.assertTrue(os.path.isfile(os.path.join(out, 'state', 'state.yaml')), r.files)
+        KittiSampleTest.saved_elevation = self.around_camera()
         offline = os.path.join(self.tmp, 'offline')
         sup.run([sup.executable('dem_offline'), '--sequence', self.sequence, '--out', offline, '--config',
                  os.path.join(sup.source_dir(), 'config', 'kitti.yaml'), '--quiet'])
@@ -165,10 +167,18 @@ class KittiSampleTest(unittest.TestCase):
             ros_yaml = yaml.safe_load(f)
         with open(os.path.join(offline, 'dem.yaml')) as f:
             off_yaml = yaml.safe_load(f)
-        common = set(off_yaml) - {'mode', 'sequence', 'first_mapped_frame'}  # the runner's own
+        common = set(off_yaml) - {'mode', 'sequence', 'first_mapped_frame', 'first_frame', 'resumed_from'}  # the runner's own
         self.assertTrue(common <= set(ros_yaml), 'dem.yaml keys missing: %s' % (common - set(ros_yaml)))
         self.assertEqual(ros_yaml.get('resolution_m', ros_yaml.get('resolution')),
                          off_yaml.get('resolution_m', off_yaml.get('resolution')))
+
+    def around_camera(self):
+        _, o = self.rec.odoms[-1]
+        p = o.pose.pose.position
+        r = rospy.ServiceProxy(NS + '/get_submap', GetSubmap)(center_x=p.x + 15.0, center_y=p.y, length_x=20.0,
+                                                              length_y=10.0, layers=['elevation'])
+        self.assertTrue(r.success, r.message)
+        return sup.layer(r.map, 'elevation')
 
     def test_07_reset(self):
         rospy.wait_for_service(NS + '/reset', 5.0)
@@ -178,6 +188,25 @@ class KittiSampleTest(unittest.TestCase):
         e = get(center_x=0.0, center_y=0.0, length_x=10.0, length_y=10.0, layers=[])
         self.assertFalse(e.success)
         self.assertIn('empty', e.message)
+
+    def test_08_load_map(self):
+        rospy.wait_for_service(NS + '/load_map', 5.0)
+        load = rospy.ServiceProxy(NS + '/load_map', LoadMap)
+        r = load(directory=os.path.join(self.tmp, 'saved'))
+        self.assertTrue(r.success, r.message)
+        self.assertIn('loaded', r.message)
+        # the map after the reset and the load is the one saved, cell for cell
+        back = self.around_camera()
+        saved = KittiSampleTest.saved_elevation
+        self.assertEqual(back.shape, saved.shape)
+        self.assertTrue(np.array_equal(np.isnan(back), np.isnan(saved)))
+        self.assertEqual(np.nanmax(np.abs(back - saved)), 0.0)
+        # the offline runner's saved state loads too (same parameters: config/kitti.yaml)
+        r = load(directory=os.path.join(self.tmp, 'offline'))
+        self.assertTrue(r.success, r.message)
+        r = load(directory=os.path.join(self.tmp, 'nowhere'))
+        self.assertFalse(r.success)
+        self.assertIn('is not a directory', r.message)
 
 
 if __name__ == '__main__':

@@ -1,8 +1,9 @@
 #pragma once
 /// \file DemServices.hpp
-/// The services of stereo_ground_dem/DemNodelet (docs/ros.md, "Services"): ~reset, ~save_map and
-/// ~get_submap. They read the worker's MapSnapshot (a copy of the map made after the last frame),
-/// never the estimator, so they answer while a frame is processed; advertise them on the
+/// The services of stereo_ground_dem/DemNodelet (docs/ros.md, "Services"): ~reset, ~save_map,
+/// ~load_map and ~get_submap. They read the worker's MapSnapshot (a copy of the map made after the
+/// last frame), never the estimator, so they answer while a frame is processed (~load_map hands
+/// the directory to the worker, which loads it between frames); advertise them on the
 /// multi-threaded node handle.
 
 #include <ros/ros.h>
@@ -12,6 +13,7 @@
 #include <string>
 
 #include "stereo_ground_dem/GetSubmap.h"
+#include "stereo_ground_dem/LoadMap.h"
 #include "stereo_ground_dem/SaveMap.h"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 #include "stereo_ground_dem/ros/DemWorker.hpp"
@@ -31,6 +33,7 @@ class DemServices {
 
   bool reset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool saveMap(SaveMap::Request& req, SaveMap::Response& res);
+  bool loadMap(LoadMap::Request& req, LoadMap::Response& res);
   bool getSubmap(GetSubmap::Request& req, GetSubmap::Response& res);
 
  private:
@@ -41,7 +44,7 @@ class DemServices {
   const std::string node_name_;
   mutable std::mutex mutex_;
   TraversabilityOptions traversability_;
-  ros::ServiceServer srv_reset_, srv_save_, srv_submap_;
+  ros::ServiceServer srv_reset_, srv_save_, srv_submap_, srv_load_;
 };
 
 }  // namespace stereo_ground_dem

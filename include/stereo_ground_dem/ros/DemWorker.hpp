@@ -13,6 +13,7 @@
 /// when the request came is not published.
 
 #include <atomic>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -51,6 +52,11 @@ class DemWorker {
   bool setEstimatorOptions(const IncrementalEstimatorOptions& options);
   /// Estimator options waiting for a reset.
   bool optionsPending() const;
+  /// Asks for a saved map (MapStateFile) to replace the current one before the next frame; the
+  /// future receives (true, what was loaded) or (false, why not). Before the first frame (no
+  /// calibration yet) the request waits for it. The next frame's stamp restarts the motion
+  /// prediction (velocity unknown, search from the saved pose).
+  std::future<std::pair<bool, std::string>> requestLoad(const std::string& directory);
 
   /// The map as of the last published frame (map == nullptr: nothing mapped).
   std::shared_ptr<const MapSnapshot> snapshot() const;
@@ -58,7 +64,9 @@ class DemWorker {
  private:
   void run();
   void applyReset();
+  void applyLoad();
   void process(StereoFrame& frame);
+  void publishSnapshot(const ros::Time& stamp, long generation);
 
   DemPublisher& publisher_;
   DemDiagnostics& diagnostics_;
@@ -74,8 +82,15 @@ class DemWorker {
   long reset_applied_ = 0;
   std::string reset_reason_;
   std::shared_ptr<const MapSnapshot> snapshot_;
+  struct LoadRequest {
+    std::string directory;
+    std::promise<std::pair<bool, std::string>> done;
+  };
+  std::unique_ptr<LoadRequest> load_request_;
 
   // processing thread only
+  /// A loaded state, restored again with the next frame's stamp (MotionPredictor's time base).
+  std::unique_ptr<EstimatorState> loaded_state_;
   std::unique_ptr<IncrementalEstimator> estimator_;
   std::vector<Eigen::Vector2d> trajectory_xy_;
   const OrthoTextureOptions ortho_options_;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "stereo_ground_dem/ElevationMap.hpp"
+#include "stereo_ground_dem/EstimatorState.hpp"
 #include "stereo_ground_dem/OrthoTexture.hpp"
 #include "stereo_ground_dem/PhotometricResidualMap.hpp"
 
@@ -24,6 +25,9 @@ struct MapSnapshot {
   std::vector<Eigen::Vector2d> trajectory_xy;             ///< ground (x, y) of the left camera per frame
   ros::Time stamp;                                        ///< of the last fused frame
   long frame_count = 0;                                   ///< frames fused into this map
+  /// The estimator's state after that frame (images shared), saved by ~save_map for ~load_map.
+  std::shared_ptr<const EstimatorState> estimator;
+  int image_width_px = 0, image_height_px = 0;
 };
 
 }  // namespace stereo_ground_dem
