@@ -146,6 +146,13 @@ TEST_F(DemOffline, ResumeContinuesTheMapAsOneRun) {
   std::vector<std::string> joined = lines(a + "/trajectory_kitti.txt");
   for (const std::string& l : lines(b + "/trajectory_kitti.txt")) joined.push_back(l);
   EXPECT_EQ(joined, lines(whole + "/trajectory_kitti.txt"));
+  // Resumed at an earlier frame (stamps going back, as with a state the node saved on the ROS
+  // clock): the saved velocity and stamp are dropped and the motion searched from the saved pose.
+  const Outcome earlier = run("--sequence " + kSample + " --out " + path("g") + " --resume " + a +
+                              " --first-frame 1 --frames 2 --quiet");
+  EXPECT_EQ(earlier.status, 0) << earlier.err;
+  EXPECT_NE(earlier.err.find("on another clock than the saved state's"), std::string::npos) << earlier.err;
+  EXPECT_EQ(summary(path("g"))["mapped"], "2");
   // Nothing left to continue, a directory without a saved map, another layout: one line, exit 1.
   const Outcome done = run("--sequence " + kSample + " --out " + path("c") + " --resume " + b + " --quiet");
   EXPECT_EQ(done.status, 1);

@@ -48,6 +48,17 @@ struct EstimatorState {
   cv::Mat previous_left, previous_right;
   std::vector<cv::Mat> previous_obstacles;
   cv::Mat last_left;
+
+  /// For a state continued on another clock (a node restarted, a ROS-stamped state continued
+  /// offline, a sequence resumed at an earlier frame): the saved velocity and stamp do not apply,
+  /// so the next frame (stamped next_stamp_s) is searched from the saved pose as after a failure,
+  /// one nominal frame period later.
+  void rebaseClock(double next_stamp_s, double nominal_frame_period_s) {
+    last_stamp_s = next_stamp_s - nominal_frame_period_s;
+    velocity = Vector6d::Zero();
+    velocity_gap_s = 0.0;
+    velocity_known = false;
+  }
 };
 
 }  // namespace stereo_ground_dem

@@ -47,8 +47,9 @@ void writeRecord(const std::string& path, const Layer& layer) {
 }
 
 template <class Layer>
-void readRecord(const std::string& path, Layer* layer) {
-  if (!layer || !fs::exists(path)) return;
+void readRecord(const std::string& path, Layer* layer, bool saved) {
+  if (!layer || !saved) return;
+  if (!fs::exists(path)) throw std::runtime_error("'" + path + "' is missing");
   std::ifstream in(path, std::ios::binary);
   try {
     layer->read(in);
@@ -57,9 +58,19 @@ void readRecord(const std::string& path, Layer* layer) {
   }
 }
 
-Eigen::Isometry3d readPose(const cv::FileNode& n, const std::string& name) {
+/// A matrix node as CV_64F (whatever type the file declares: no read past a buffer).
+cv::Mat readMatrix(const cv::FileNode& n) {
   cv::Mat m;
   n >> m;
+  if (!m.empty() && m.type() != CV_64F) {
+    if (m.channels() != 1) return cv::Mat();
+    m.convertTo(m, CV_64F);
+  }
+  return m;
+}
+
+Eigen::Isometry3d readPose(const cv::FileNode& n, const std::string& name) {
+  cv::Mat m = readMatrix(n);
   if (m.rows != 4 || m.cols != 4 || m.type() != CV_64F) throw std::runtime_error(name + " is not a 4x4 matrix");
   Eigen::Matrix4d e;
   cv::cv2eigen(m, e);
@@ -78,7 +89,9 @@ void MapStateFile::write(const std::string& directory, const SavedMapState& stat
   std::error_code ec;
   fs::create_directories(dir / "map", ec);
   if (ec) throw std::runtime_error("cannot create '" + (dir / "map").string() + "': " + ec.message());
-  // a previous save here: its files must not mix with this one's
+  // a previous save here: its files must not mix with this one's, and while this one is written
+  // the directory is not a saved state (state.yaml goes first and comes back last)
+  fs::remove(dir / "state.yaml", ec);
   for (const auto& e : fs::directory_iterator(dir / "map")) {
     const std::string name = e.path().filename().string();
     if (name.rfind("tile_", 0) == 0) fs::remove(e.path(), ec);
@@ -107,6 +120,7 @@ void MapStateFile::write(const std::string& directory, const SavedMapState& stat
   fsw << "image_width_px" << state.image_width_px << "image_height_px" << state.image_height_px;
   fsw << "map_resolution_m" << map.options().resolution_m << "map_tile_size" << map.options().tile_size;
   fsw << "map_tiles" << static_cast<int>(map.tileCount());
+  fsw << "ortho_saved" << static_cast<int>(ortho != nullptr) << "residual_saved" << static_cast<int>(residual != nullptr);
   fsw << "initialized" << static_cast<int>(s.initialized) << "frame_counter" << s.frame_counter;
   fsw << "ground_T_camera0" << toMat(s.ground_T_camera0.matrix());
   fsw << "ground_T_camera" << toMat(s.ground_T_camera.matrix());
@@ -172,36 +186,36 @@ SavedMapState MapStateFile::read(const std::string& directory, ElevationMap* map
     s.last_camera_T_ground = readPose(f["last_camera_T_ground"], "last_camera_T_ground");
     s.last_stamp_s = f["last_stamp_s"];
     cv::Mat m;
-    f["velocity"] >> m;
+    m = readMatrix(f["velocity"]);
     if (m.rows != 6 || m.cols != 1) throw std::runtime_error("velocity is not a 6-vector");
     cv::cv2eigen(m, s.velocity);
     s.velocity_gap_s = f["velocity_gap_s"];
     s.velocity_known = static_cast<int>(f["velocity_known"]) != 0;
     s.residual_level_grey = f["residual_level_grey"];
     s.prealign_level = f["prealign_level"];
-    f["last_photometric"] >> m;
+    m = readMatrix(f["last_photometric"]);
     if (m.rows != 3 || m.cols != 2) throw std::runtime_error("last_photometric is not 3x2");
     for (int j = 0; j < 3; ++j) s.last_photometric[static_cast<size_t>(j)] = {m.at<double>(j, 0), m.at<double>(j, 1)};
     s.consecutive_failures = f["consecutive_failures"];
     s.failures_total = f["failures_total"];
     s.recoveries = f["recoveries"];
     s.rejected_total = f["rejected_total"];
-    f["rectification_information"] >> m;
+    m = readMatrix(f["rectification_information"]);
     if (m.rows != 6 || m.cols != 6) throw std::runtime_error("rectification_information is not 6x6");
     cv::cv2eigen(m, s.rectification_information);
-    f["rectification_information_vector"] >> m;
+    m = readMatrix(f["rectification_information_vector"]);
     if (m.rows != 6 || m.cols != 1) throw std::runtime_error("rectification_information_vector is not a 6-vector");
     cv::cv2eigen(m, s.rectification_information_vector);
     s.rectification_pairs = f["rectification_pairs"];
-    f["rectification"] >> m;
+    m = readMatrix(f["rectification"]);
     if (m.rows != 7 || m.cols != 1) throw std::runtime_error("rectification is not a 7-vector");
     for (int c = 0; c < 6; ++c) s.rectification.row_shift_px[static_cast<size_t>(c)] = m.at<double>(c);
     s.rectification.per_disparity = m.at<double>(6);
     s.rectification_set = static_cast<int>(f["rectification_set"]) != 0;
     const int levels = f["previous_obstacle_levels"];
     if (levels < 0 || levels > 16) throw std::runtime_error("previous_obstacle_levels out of range");
-    f["trajectory_xy"] >> m;
-    if (!m.empty() && (m.cols != 2 || m.type() != CV_64F)) throw std::runtime_error("trajectory_xy is not N x 2");
+    m = readMatrix(f["trajectory_xy"]);
+    if (!m.empty() && m.cols != 2) throw std::runtime_error("trajectory_xy is not N x 2");
     for (int i = 0; i < m.rows; ++i) out.trajectory_xy.emplace_back(m.at<double>(i, 0), m.at<double>(i, 1));
     s.previous_left = readImage((dir / "previous_left.tif").string(), CV_32FC1);
     s.previous_right = readImage((dir / "previous_right.tif").string(), CV_32FC1);
@@ -222,8 +236,8 @@ SavedMapState MapStateFile::read(const std::string& directory, ElevationMap* map
       // into copies: nothing changes unless everything could be read
       std::unique_ptr<OrthoTexture> o = ortho ? std::make_unique<OrthoTexture>(*ortho) : nullptr;
       std::unique_ptr<PhotometricResidualMap> r = residual ? std::make_unique<PhotometricResidualMap>(*residual) : nullptr;
-      readRecord((dir / "ortho.bin").string(), o.get());
-      readRecord((dir / "residual.bin").string(), r.get());
+      readRecord((dir / "ortho.bin").string(), o.get(), static_cast<int>(f["ortho_saved"]) != 0);
+      readRecord((dir / "residual.bin").string(), r.get(), static_cast<int>(f["residual_saved"]) != 0);
       *map = std::move(loaded);
       if (o) *ortho = std::move(*o);
       if (r) *residual = std::move(*r);

@@ -114,9 +114,12 @@ bool DemServices::loadMap(LoadMap::Request& req, LoadMap::Response& res) {
     const std::pair<bool, std::string> r = done.get();
     res.success = r.first;
     res.message = r.second;
-  } else {
+  } else if (!worker_.hasCalibration()) {
     res.success = true;
     res.message = "queued: '" + dir + "' is loaded with the first stereo frame (no camera_info yet; diagnostics say how it went)";
+  } else {
+    res.success = false;
+    res.message = "still loading '" + dir + "' after 10 s: diagnostics will say how it went";
   }
   return true;
 }

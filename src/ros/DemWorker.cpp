@@ -53,6 +53,14 @@ void DemWorker::start() {
 void DemWorker::stop() {
   slot_.close();
   if (thread_.joinable()) thread_.join();
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  if (load_request_) load_request_->done.set_value({false, "the node is shutting down"});
+  load_request_.reset();
+}
+
+bool DemWorker::hasCalibration() const {
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  return has_calibration_;
 }
 
 bool DemWorker::submit(StereoFrame frame) { return slot_.put(std::move(frame)).has_value(); }
@@ -63,6 +71,8 @@ void DemWorker::requestReset(const std::string& why, bool warning) {
     ++reset_requested_;
     reset_reason_ = why;
     snapshot_ = std::make_shared<MapSnapshot>();
+    if (load_request_) load_request_->done.set_value({false, "cancelled by a reset (" + why + ")"});
+    load_request_.reset();
   }
   diagnostics_.restarted(why, warning);
   slot_.wake();
@@ -241,6 +251,8 @@ void DemWorker::process(StereoFrame& f) {
     try {
       estimator_ = std::make_unique<IncrementalEstimator>(f.rig, options);
       restartLayers(options, estimator_->map().options().resolution_m);
+      std::lock_guard<std::mutex> lock(control_mutex_);
+      has_calibration_ = true;
     } catch (const std::exception& e) {
       estimator_.reset();
       diagnostics_.skipped(std::string("cannot start the estimator: ") + e.what());
@@ -258,10 +270,7 @@ void DemWorker::process(StereoFrame& f) {
     // one, so the motion is searched from the saved pose as after a failure.
     EstimatorState s = *loaded_state_;
     loaded_state_.reset();
-    s.last_stamp_s = stamp_s - estimator_->options().nominal_frame_period_s;
-    s.velocity.setZero();
-    s.velocity_gap_s = 0.0;
-    s.velocity_known = false;
+    s.rebaseClock(stamp_s, estimator_->options().nominal_frame_period_s);
     try {
       estimator_->restore(s);
     } catch (const std::exception& e) {  // validated at the load; never expected

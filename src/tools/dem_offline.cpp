@@ -336,6 +336,15 @@ int runSequence(const Args& a) {
     throw std::invalid_argument("the first frame " + std::to_string(first) + " is past the sequence's " +
                                 std::to_string(seq.size()) + " frames" +
                                 (a.resume.empty() ? std::string() : " (the resumed run stopped there)"));
+  // A state saved on another clock (the node's ROS stamps) or resumed at another frame than the
+  // next one: the saved velocity and stamp do not apply; the motion is searched from the saved pose.
+  if (!a.resume.empty() && saved.estimator.initialized && std::isfinite(seq.stamp(first)) &&
+      (first != saved.next_sequence_frame || !(seq.stamp(first) > saved.estimator.last_stamp_s))) {
+    saved.estimator.rebaseClock(seq.stamp(first), o.estimator.nominal_frame_period_s);
+    est.restore(saved.estimator);
+    warn("resuming at frame " + std::to_string(first) + " on another clock than the saved state's: the motion is "
+         "searched from the saved pose");
+  }
   const int n = a.frames > 0 ? std::min(a.frames, seq.size() - first) : seq.size() - first;
   checkOutputDirectory(a.out);
   constexpr double kDeg = 180.0 / M_PI;

@@ -57,6 +57,8 @@ class DemWorker {
   /// calibration yet) the request waits for it. The next frame's stamp restarts the motion
   /// prediction (velocity unknown, search from the saved pose).
   std::future<std::pair<bool, std::string>> requestLoad(const std::string& directory);
+  /// A camera_info has been received (the estimator exists).
+  bool hasCalibration() const;
 
   /// The map as of the last published frame (map == nullptr: nothing mapped).
   std::shared_ptr<const MapSnapshot> snapshot() const;
@@ -86,7 +88,8 @@ class DemWorker {
     std::string directory;
     std::promise<std::pair<bool, std::string>> done;
   };
-  std::unique_ptr<LoadRequest> load_request_;
+  std::unique_ptr<LoadRequest> load_request_;  ///< answered by applyLoad, a reset, a newer request or stop()
+  bool has_calibration_ = false;
 
   // processing thread only
   /// A loaded state, restored again with the next frame's stamp (MotionPredictor's time base).
