@@ -21,6 +21,9 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHARED = os.path.join(os.path.dirname(REPO), "shared")
 SCENES = ["flat", "bump", "offroad", "crest", "sag", "banked_curve", "bounce", "tight_curve", "ramp", "rolling",
           "shadows", "traffic"]
+# The LiDAR scorer needs numpy/scipy: Debian's python3 has them (install_deps.sh), a pyenv or
+# virtualenv python3 that runs this script may not.
+PYTHON = "/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable
 CLIPS = {"kitti_raw_0013": os.path.join(SHARED, "data", "kitti_raw_0926_d0013_f000-079"),
          "kitti_odom_06": os.path.join(SHARED, "data", "kitti_odom_seq06_f000-050")}
 
@@ -83,7 +86,7 @@ def main():
                            coverage_pct=100 * w["coverage"])
         lidar = os.path.join(seq, "gt", "lidar_ground.npz")
         if os.path.exists(lidar):
-            l = run([sys.executable, os.path.join(SHARED, "tools", "lidar_dem_eval.py"), "--ref", seq, "--est", out,
+            l = run([PYTHON, os.path.join(SHARED, "tools", "lidar_dem_eval.py"), "--ref", seq, "--est", out,
                      "--pose", "lidar", "--json"])
             try:
                 j = json.loads(l.stdout.strip().splitlines()[-1])
