@@ -1,0 +1,287 @@
+#include "stereo_ground_dem/aligner/AlignmentLevel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "stereo_ground_dem/PlaneGeometry.hpp"
+
+namespace stereo_ground_dem {
+namespace aligner {
+
+AlignmentLevel::AlignmentLevel(const SurfaceAlignerOptions& o, const AlignmentProblem& p, const SurfaceState& s)
+    : opt_(o), prob_(p) {
+  const GroundGrid& g = *p.grid;
+  rig_ = p.rig->atLevel(p.level);
+  ref_ = &p.reference->level(p.level);
+  width_ = ref_->image.cols;
+  height_ = ref_->image.rows;
+  if (p.excluded && static_cast<int>(p.excluded->size()) > p.level) {
+    excluded_ = &(*p.excluded)[static_cast<size_t>(p.level)];
+    if (excluded_->size() != ref_->image.size() || excluded_->type() != CV_8U) {
+      throw std::invalid_argument("SurfaceAligner: excluded mask does not match the pyramid level");
+    }
+  }
+  data_scale_ = std::ldexp(1.0, 2 * p.level) / (o.image_noise_std_grey * o.image_noise_std_grey);
+  gtex2_ = static_cast<float>(o.textured_gradient_grey_per_px * o.textured_gradient_grey_per_px);
+  selectWorkingSet(g, s);
+  buildBasis();
+  if (p.estimate_heights) {  // motion/photometry only: no height block to build
+    buildSmoothness(g);
+    buildPattern();
+  }
+  global_count_ = o.estimate_motion ? 6 : 0;
+  photo_index_.assign(p.targets.size(), -1);
+  for (size_t j = 0; j < p.targets.size(); ++j) {
+    if (p.targets[j].estimate_photometric) {
+      photo_index_[j] = global_count_;
+      global_count_ += 2;
+    }
+    strides_.push_back(o.estimate_motion && !p.targets[j].rig_fixed ? kStrideWorld : kStrideRig);
+  }
+  threads_ = std::max(1, o.num_threads);
+}
+
+std::vector<PairContext> AlignmentLevel::pairs(const SurfaceState& s) const {
+  std::vector<PairContext> out(prob_.targets.size());
+  for (size_t j = 0; j < out.size(); ++j) {
+    const AlignerTarget& t = prob_.targets[j];
+    PairContext& c = out[j];
+    c.target_T_reference = t.rig_fixed ? t.target_T_reference : t.target_T_ground * s.camera_T_ground.inverse();
+    const Eigen::Matrix3d& r = c.target_T_reference.linear();
+    const Eigen::Vector3d& tt = c.target_T_reference.translation();
+    c.t_prime = r.transpose() * tt;
+    const bool no_rotation = (r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-12;
+    if (no_rotation && std::abs(tt.z()) < 1e-12) {
+      c.kind = std::abs(tt.y()) < 1e-12 ? kWarpHorizontal : kWarpAffine;
+    } else {
+      c.kind = kWarpProjective;
+    }
+    const double level_scale = std::ldexp(1.0, -prob_.level);  // level-0 px -> this level's px
+    for (size_t a = 0; a < c.shift.size(); ++a) {
+      c.shift[a] = static_cast<float>(level_scale * t.row_shift_px[a]);
+      c.row_shift = c.row_shift || t.row_shift_px[a] != 0.0;
+    }
+    c.world = opt_.estimate_motion && !t.rig_fixed;
+    c.checkerboard = t.checkerboard;
+    c.photo_index = photo_index_[j];
+    c.photometric = s.photometric[j];
+    c.image = &t.pyramid->level(prob_.level).image;
+    if (t.reference_excluded && static_cast<int>(t.reference_excluded->size()) > prob_.level &&
+        !(*t.reference_excluded)[static_cast<size_t>(prob_.level)].empty()) {
+      c.reference_excluded = &(*t.reference_excluded)[static_cast<size_t>(prob_.level)];
+      if (c.reference_excluded->size() != ref_->image.size() || c.reference_excluded->type() != CV_8U) {
+        throw std::invalid_argument("SurfaceAligner: a target's reference mask does not match the pyramid level");
+      }
+    }
+    if (t.excluded && static_cast<int>(t.excluded->size()) > prob_.level &&
+        !(*t.excluded)[static_cast<size_t>(prob_.level)].empty()) {
+      c.target_excluded = &(*t.excluded)[static_cast<size_t>(prob_.level)];
+      if (c.target_excluded->size() != c.image->size() || c.target_excluded->type() != CV_8U) {
+        throw std::invalid_argument("SurfaceAligner: a target's excluded mask does not match its pyramid level");
+      }
+    }
+  }
+  return out;
+}
+
+Eigen::VectorXd AlignmentLevel::activeHeights(const SurfaceState& s) const {
+  Eigen::VectorXd za(activeCount());
+  for (size_t a = 0; a < active_.size(); ++a) za[static_cast<Eigen::Index>(a)] = s.heights[active_[a]];
+  return za;
+}
+
+double AlignmentLevel::apply(const Step& st, double alpha, const SurfaceState& from, SurfaceState* to) const {
+  *to = from;
+  double max_dz = 0.0;
+  if (prob_.estimate_heights && st.dtheta.size() > 0) {
+    if (identity_basis_) {
+      for (size_t a = 0; a < active_.size(); ++a) {
+        const double d = alpha * st.dtheta[static_cast<Eigen::Index>(a)];
+        to->heights[active_[a]] += d;
+        max_dz = std::max(max_dz, std::abs(d));
+      }
+    } else {
+      Eigen::VectorXd full = Eigen::VectorXd::Zero(prob_.basis->cols());
+      for (int c = 0; c < control_count_; ++c) full[control_[static_cast<size_t>(c)]] = alpha * st.dtheta[c];
+      const Eigen::VectorXd dz = (*prob_.basis) * full;
+      for (Eigen::Index v = 0; v < dz.size(); ++v) {
+        if (std::isfinite(to->heights[v]) && dz[v] != 0.0) {
+          to->heights[v] += dz[v];
+          max_dz = std::max(max_dz, std::abs(dz[v]));
+        }
+      }
+    }
+  }
+  if (opt_.estimate_motion) {
+    to->camera_T_ground = Se3::exp(alpha * st.dglobal.head<6>()) * from.camera_T_ground;
+  }
+  for (size_t j = 0; j < prob_.targets.size(); ++j) {
+    const int pi = photo_index_[j];
+    if (pi < 0) continue;
+    to->photometric[j] = from.photometric[j].composedWithInverse(alpha * st.dglobal[pi], alpha * st.dglobal[pi + 1]);
+  }
+  return max_dz;
+}
+
+void AlignmentLevel::fillPixels(const Evaluation& ev, AlignmentReport* report) const {
+  report->vertex_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+  report->vertex_excluded_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+  report->vertex_textured_pixels = Eigen::VectorXi::Zero(prob_.grid->vertexCount());
+  for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
+    const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
+    for (int a = 0; a < 3; ++a) {
+      report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
+      report->vertex_excluded_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_excluded[k2];
+      report->vertex_textured_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_textured[k2];
+    }
+  }
+}
+
+void AlignmentLevel::selectWorkingSet(const GroundGrid& g, const SurfaceState& s) {
+  const int nv = g.vertexCount();
+  if (s.heights.size() != nv) throw std::invalid_argument("SurfaceAligner: heights do not match the grid");
+  // vertex eligibility: finite height, enabled, within the depth / lateral range
+  std::vector<uint8_t> ok(static_cast<size_t>(nv), 0);
+  std::vector<Eigen::Vector2d> pix(static_cast<size_t>(nv));
+  for (int v = 0; v < nv; ++v) {
+    if (!std::isfinite(s.heights[v])) continue;
+    if (!prob_.vertex_mask.empty() && !prob_.vertex_mask[static_cast<size_t>(v)]) continue;
+    const Eigen::Vector2d xy = g.position(v);
+    const Eigen::Vector3d xc = s.camera_T_ground * Eigen::Vector3d(xy.x(), xy.y(), s.heights[v]);
+    if (xc.z() < opt_.min_depth_m || xc.z() > opt_.max_depth_m || std::abs(xc.x()) > opt_.max_lateral_m) continue;
+    ok[static_cast<size_t>(v)] = 1;
+    pix[static_cast<size_t>(v)] = {rig_.fx * xc.x() / xc.z() + rig_.cx, rig_.fy * xc.y() / xc.z() + rig_.cy};
+  }
+  std::vector<int> local(static_cast<size_t>(nv), -1);
+  for (int t = 0; t < g.triangleCount(); ++t) {
+    const auto tv = g.triangle(t);
+    if (!ok[static_cast<size_t>(tv[0])] || !ok[static_cast<size_t>(tv[1])] || !ok[static_cast<size_t>(tv[2])]) continue;
+    double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
+    for (int a : tv) {
+      const auto& p = pix[static_cast<size_t>(a)];
+      umin = std::min(umin, p.x());
+      umax = std::max(umax, p.x());
+      vmin = std::min(vmin, p.y());
+      vmax = std::max(vmax, p.y());
+    }
+    if (umax < 0 || vmax < 0 || umin > width_ - 1 || vmin > height_ - 1) continue;
+    TriangleGeometry tg;
+    tg.vertex = tv;
+    std::array<Eigen::Vector2d, 3> xy;
+    for (int a = 0; a < 3; ++a) {
+      const int v = tv[static_cast<size_t>(a)];
+      xy[static_cast<size_t>(a)] = g.position(v);
+      if (local[static_cast<size_t>(v)] < 0) {
+        local[static_cast<size_t>(v)] = static_cast<int>(active_.size());
+        active_.push_back(v);
+      }
+      tg.local[static_cast<size_t>(a)] = local[static_cast<size_t>(v)];
+    }
+    tg.heights_to_plane = PlaneGeometry::heightsToPlane(xy);
+    tris_.push_back(tg);
+  }
+  local_ = std::move(local);
+}
+
+void AlignmentLevel::buildBasis() {
+  const int na = activeCount();
+  if (prob_.basis == nullptr) {
+    identity_basis_ = true;
+    control_count_ = prob_.estimate_heights ? na : 0;
+    mu_.resize(control_count_);
+    for (int a = 0; a < control_count_; ++a) {
+      mu_[a] = prob_.update_weight.size() > 0 ? prob_.update_weight[active_[static_cast<size_t>(a)]] : 0.0;
+    }
+    return;
+  }
+  identity_basis_ = false;
+  const auto& b = *prob_.basis;
+  if (b.rows() != prob_.grid->vertexCount()) throw std::invalid_argument("SurfaceAligner: basis rows != grid vertices");
+  std::vector<int> col_local(static_cast<size_t>(b.cols()), -1);
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int a = 0; a < na; ++a) {
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(b, active_[static_cast<size_t>(a)]); it; ++it) {
+      if (it.value() == 0.0) continue;
+      int& cl = col_local[static_cast<size_t>(it.col())];
+      if (cl < 0) {
+        cl = static_cast<int>(control_.size());
+        control_.push_back(static_cast<int>(it.col()));
+      }
+      trip.emplace_back(a, cl, it.value());
+    }
+  }
+  control_count_ = prob_.estimate_heights ? static_cast<int>(control_.size()) : 0;
+  basis_.resize(na, static_cast<int>(control_.size()));
+  basis_.setFromTriplets(trip.begin(), trip.end());
+  basis_t_ = basis_.transpose();
+  mu_.resize(static_cast<Eigen::Index>(control_.size()));
+  for (size_t c = 0; c < control_.size(); ++c) {
+    mu_[static_cast<Eigen::Index>(c)] = prob_.update_weight.size() > 0 ? prob_.update_weight[control_[c]] : 0.0;
+  }
+}
+
+void AlignmentLevel::buildSmoothness(const GroundGrid& g) {
+  const double s = g.resolution_m;
+  const double w_axis = std::sqrt(opt_.smoothness_weight) / s;
+  const double w_diag = std::sqrt(opt_.smoothness_weight) / (2.0 * s);
+  stencils_.clear();
+  auto add = [&](int r, int c, int dr, int dc, double w) {
+    if (!g.contains(r - dr, c - dc) || !g.contains(r + dr, c + dc)) return;
+    const int a = local_[static_cast<size_t>(g.index(r - dr, c - dc))];
+    const int b = local_[static_cast<size_t>(g.index(r, c))];
+    const int d = local_[static_cast<size_t>(g.index(r + dr, c + dc))];
+    if (a < 0 || b < 0 || d < 0) return;
+    Stencil st;
+    st.v = {a, b, d};
+    st.w = w;
+    stencils_.push_back(st);
+  };
+  if (opt_.smoothness_weight > 0.0) {
+    for (int v : active_) {
+      const int r = g.rowOf(v), c = g.colOf(v);
+      add(r, c, 0, 1, w_axis);
+      add(r, c, 1, 0, w_axis);
+      add(r, c, 1, 1, w_diag);
+    }
+  }
+  // Robust scale of a stencil's second difference [m]: larger bends (a curb, a step) are
+  // down-weighted (Cauchy), so the surface may break there instead of smearing the step.
+  smooth_c2_ = opt_.smoothness_robust_scale_m > 0.0 ? opt_.smoothness_robust_scale_m * opt_.smoothness_robust_scale_m
+                                                    : 0.0;
+}
+
+void AlignmentLevel::buildPattern() {
+  const int na = activeCount();
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + stencils_.size() * 9);
+  for (const auto& t : tris_)
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)], 0.0);
+  for (int a = 0; a < na; ++a) trip.emplace_back(a, a, 0.0);
+  for (const auto& st : stencils_)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) trip.emplace_back(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)], 0.0);
+  hzz_pattern_.resize(na, na);
+  hzz_pattern_.setFromTriplets(trip.begin(), trip.end());
+  hzz_pattern_.makeCompressed();
+  auto index = [this](int r, int c) {
+    const int* begin = hzz_pattern_.innerIndexPtr() + hzz_pattern_.outerIndexPtr()[c];
+    const int* end = hzz_pattern_.innerIndexPtr() + hzz_pattern_.outerIndexPtr()[c + 1];
+    const int* it = std::lower_bound(begin, end, r);
+    return static_cast<int>(it - hzz_pattern_.innerIndexPtr());
+  };
+  for (auto& t : tris_)
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        t.value_index[static_cast<size_t>(r * 3 + c)] = index(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)]);
+  diag_index_.resize(static_cast<size_t>(na));
+  for (int a = 0; a < na; ++a) diag_index_[static_cast<size_t>(a)] = index(a, a);
+  for (auto& st : stencils_)
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        st.idx[static_cast<size_t>(a * 3 + b)] = index(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)]);
+}
+
+}  // namespace aligner
+}  // namespace stereo_ground_dem
