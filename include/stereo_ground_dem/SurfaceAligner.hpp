@@ -51,6 +51,10 @@ struct SurfaceAlignerOptions {
   double converged_rotation_rad = 1e-5;    ///< ... and [rad]
   double converged_relative_decrease = 2e-4;  ///< or when a step lowers the cost by less than this fraction
   int border_margin_px = 2;                ///< reference pixels this close to the border are unused
+  /// An evaluation keeps the previous one's assignment of reference pixels to triangles (no new
+  /// rasterization) while no vertex has moved more than this in the reference image since it was
+  /// made [px at the level]; 0: every evaluation rasterizes.
+  double raster_reuse_px = 0.5;
   double dark_level_grey = 1.5;            ///< reference / target values at or below: not used
   double saturated_level_grey = 253.5;     ///< values at or above: not used
   /// A used reference pixel counts as textured (AlignmentReport::vertex_textured_pixels) when its
@@ -158,6 +162,8 @@ struct AlignmentReport {
   int evaluations = 0;               ///< rasterize + residual passes
   double setup_ms = 0.0;             ///< working set, basis, pattern
   double evaluate_ms = 0.0;          ///< rasterization and pixel loops
+  double raster_ms = 0.0;            ///< ... of which rasterization, slots and homographies
+  int rasterizations = 0;            ///< evaluations that rasterized (the others kept the last one)
   double solve_ms = 0.0;             ///< normal equations and their solution
   int cg_fallbacks = 0;              ///< CG solves that did not converge (Cholesky used)
   /// Per fine vertex, from the final linearization: diagonal of the data term's normal matrix

@@ -22,8 +22,9 @@ class TriangleRasterizer {
   /// Clears the buffers for an image of width x height; pixels closer than `margin` to the border
   /// are never covered.
   void reset(int width, int height, int margin);
-  /// Draws a triangle; returns the number of pixels it won at the time of drawing.
-  int draw(const Triangle& tri);
+  /// Draws a triangle; returns the number of pixels it won at the time of drawing. Only rows
+  /// first_row..last_row are touched: threads can draw bands of rows at once.
+  int draw(const Triangle& tri, int first_row = 0, int last_row = 1 << 30);
 
   const cv::Mat& labels() const { return labels_; }             ///< CV_32S, -1 = none
   const cv::Mat& inverseDepth() const { return inv_depth_; }    ///< CV_32F, 0 = none

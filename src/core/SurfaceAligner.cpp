@@ -25,6 +25,7 @@ bool SurfaceAlignerOptions::isValid(std::string* why) const {
   }
   if (!(max_lateral_m > 0.0)) return bad("max_lateral_m must be > 0");
   if (border_margin_px < 1) return bad("border_margin_px must be >= 1");
+  if (!(raster_reuse_px >= 0.0) || !std::isfinite(raster_reuse_px)) return bad("raster_reuse_px must be finite and >= 0");
   if (!(saturated_level_grey > dark_level_grey)) return bad("saturated_level_grey must exceed dark_level_grey");
   if (!(textured_gradient_grey_per_px >= 0.0) || !std::isfinite(textured_gradient_grey_per_px)) {
     return bad("textured_gradient_grey_per_px must be finite and >= 0");
@@ -183,6 +184,8 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   // ev holds the evaluation at the final state; vertex_information comes from the last
   // linearization (the state before the last accepted step), which differs only to second order.
   level.fillPixels(*ev, &report);
+  report.raster_ms = evaluator.rasterMs();
+  report.rasterizations = evaluator.rasterizations();
   report.final_cost = ev->total();
   report.data_cost = ev->data_cost;
   report.smoothness_cost = ev->smoothness_cost;

@@ -17,7 +17,7 @@ void TriangleRasterizer::reset(int width, int height, int margin) {
   margin_ = margin;
 }
 
-int TriangleRasterizer::draw(const Triangle& t) {
+int TriangleRasterizer::draw(const Triangle& t, int first_row, int last_row) {
   const double area2 = (t.u[1] - t.u[0]) * (t.v[2] - t.v[0]) - (t.v[1] - t.v[0]) * (t.u[2] - t.u[0]);
   if (!(std::abs(area2) > 1e-12)) return 0;
   const double sgn = area2 > 0 ? 1.0 : -1.0;
@@ -26,20 +26,21 @@ int TriangleRasterizer::draw(const Triangle& t) {
   const double vmax = std::max({t.v[0], t.v[1], t.v[2]});
   const double umin = std::min({t.u[0], t.u[1], t.u[2]});
   const double umax = std::max({t.u[0], t.u[1], t.u[2]});
-  const int r0 = std::max(margin_, static_cast<int>(std::ceil(vmin)));
-  const int r1 = std::min(h - 1 - margin_, static_cast<int>(std::floor(vmax)));
+  const int r0 = std::max({margin_, first_row, static_cast<int>(std::ceil(vmin))});
+  const int r1 = std::min({h - 1 - margin_, last_row, static_cast<int>(std::floor(vmax))});
   const int cmin = std::max(margin_, static_cast<int>(std::ceil(umin)));
   const int cmax = std::min(w - 1 - margin_, static_cast<int>(std::floor(umax)));
   if (r0 > r1 || cmin > cmax) return 0;
   // Edge i: E_i(u, v) = sgn * ((u_{i+1} - u_i)(v - v_i) - (v_{i+1} - v_i)(u - u_i)) >= 0 inside,
   // i.e. A_i u + B_i(v) >= 0 with A_i = -sgn * (v_{i+1} - v_i).
-  double ea[3], eb[3], ec[3];
+  double ea[3], eb[3], ec[3], inv_ea[3];
   for (int i = 0; i < 3; ++i) {
     const int j = (i + 1) % 3;
     const double du = t.u[j] - t.u[i], dv = t.v[j] - t.v[i];
     ea[i] = -sgn * dv;
     eb[i] = sgn * du;
     ec[i] = sgn * (-du * t.v[i] + dv * t.u[i]);
+    inv_ea[i] = ea[i] != 0.0 ? 1.0 / ea[i] : 0.0;
   }
   constexpr double kEps = 1e-9;
   int won = 0;
@@ -49,9 +50,9 @@ int TriangleRasterizer::draw(const Triangle& t) {
     for (int i = 0; i < 3; ++i) {
       const double k = eb[i] * v + ec[i];  // ea u + k >= 0
       if (ea[i] > kEps) {
-        lo = std::max(lo, -k / ea[i]);
+        lo = std::max(lo, -k * inv_ea[i]);
       } else if (ea[i] < -kEps) {
-        hi = std::min(hi, -k / ea[i]);
+        hi = std::min(hi, -k * inv_ea[i]);
       } else if (k < -kEps) {
         empty = true;
       }
@@ -62,18 +63,18 @@ int TriangleRasterizer::draw(const Triangle& t) {
     if (c0 > c1) continue;
     int* lab = labels_.ptr<int>(v);
     float* rho = inv_depth_.ptr<float>(v);
-    const double base = t.rho_b * v + t.rho_c;
-    bool any = false;
-    for (int c = c0; c <= c1; ++c) {
-      const float r = static_cast<float>(t.rho_a * c + base);
-      if (r > rho[c]) {
-        rho[c] = r;
-        lab[c] = t.id;
-        ++won;
-        any = true;
-      }
+    const float ra = static_cast<float>(t.rho_a), base = static_cast<float>(t.rho_b * v + t.rho_c);
+    const int id = t.id;
+    int won_row = 0;
+    for (int c = c0; c <= c1; ++c) {  // branch-free: the nearer surface wins the pixel
+      const float r = ra * static_cast<float>(c) + base, old = rho[c];
+      const int nearer = r > old ? -1 : 0;  // all bits set where this triangle wins
+      rho[c] = r > old ? r : old;
+      lab[c] = (id & nearer) | (lab[c] & ~nearer);
+      won_row -= nearer;
     }
-    if (any) {
+    if (won_row > 0) {
+      won += won_row;
       auto& b = row_begin_[static_cast<size_t>(v)];
       auto& e = row_end_[static_cast<size_t>(v)];
       b = std::min(b, c0);

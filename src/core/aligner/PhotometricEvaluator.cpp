@@ -1,6 +1,7 @@
 #include "stereo_ground_dem/aligner/PhotometricEvaluator.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -14,6 +15,9 @@ namespace stereo_ground_dem {
 namespace aligner {
 
 namespace {
+
+/// Eight floats as one vector (GCC / Clang vector extension: one AVX or two SSE registers).
+typedef float Float8 __attribute__((vector_size(32)));
 
 inline float bilinear(const cv::Mat& img, float u, float v) {
   const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
@@ -42,24 +46,17 @@ inline float fastLog1p(float x) {
 
 }  // namespace
 
-/// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
-void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
+void PhotometricEvaluator::rasterize(const SurfaceState& s) {
   const SurfaceAlignerOptions& opt = level_.options();
-  const AlignmentProblem& prob = level_.problem();
   const StereoRig& rig = level_.rig();
   std::vector<TriangleGeometry>& tris = level_.triangles();
-  const int width = level_.width(), height = level_.height(), threads = level_.threads();
-  const std::vector<PairContext> pc = level_.pairs(s);
-  const size_t np = pc.size();
-  const size_t nt = tris.size();
-  // Per-triangle planes and, per pair, homographies.
   const Eigen::Isometry3d& ctg = s.camera_T_ground;
   const Eigen::Vector3d cam_pos = -(ctg.linear().transpose() * ctg.translation());
-  const Eigen::Matrix3d k = rig.K();
-  const Eigen::Matrix3d kinv = k.inverse();
-  auto& hom = ws_->homographies;
   TriangleRasterizer& raster = ws_->raster;
-  raster.reset(width, height, opt.border_margin_px);
+  raster.reset(level_.width(), level_.height(), opt.border_margin_px);
+  std::vector<TriangleRasterizer::Triangle>& projected = ws_->projected;
+  projected.clear();
+  const size_t nt = tris.size();
   for (size_t i = 0; i < nt; ++i) {
     TriangleGeometry& t = tris[i];
     t.drawn = false;
@@ -67,47 +64,116 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
     const Eigen::Vector3d pqc = t.heights_to_plane * z;
     // front-facing: the camera is above the triangle's plane
     if (!(cam_pos.z() - (pqc.x() * cam_pos.x() + pqc.y() * cam_pos.y() + pqc.z()) > 1e-3)) continue;
+    if (!vertex_ok_[static_cast<size_t>(t.local[0])] || !vertex_ok_[static_cast<size_t>(t.local[1])] ||
+        !vertex_ok_[static_cast<size_t>(t.local[2])])
+      continue;
     if (!PlaneGeometry::cameraPlane(ctg, pqc, &t.m)) continue;
     TriangleRasterizer::Triangle rt;
-    bool ok = true;
     for (int a = 0; a < 3; ++a) {
-      const Eigen::Vector2d xy = prob.grid->position(t.vertex[static_cast<size_t>(a)]);
-      const Eigen::Vector3d xc = ctg * Eigen::Vector3d(xy.x(), xy.y(), z[a]);
-      if (!(xc.z() > 0.1)) {
-        ok = false;
-        break;
-      }
-      rt.u[a] = rig.fx * xc.x() / xc.z() + rig.cx;
-      rt.v[a] = rig.fy * xc.y() / xc.z() + rig.cy;
+      rt.u[a] = vertex_u_[static_cast<size_t>(t.local[static_cast<size_t>(a)])];
+      rt.v[a] = vertex_v_[static_cast<size_t>(t.local[static_cast<size_t>(a)])];
     }
-    if (!ok) continue;
     rt.rho_a = t.m.x() / rig.fx;
     rt.rho_b = t.m.y() / rig.fy;
     rt.rho_c = t.m.z() - t.m.x() * rig.cx / rig.fx - t.m.y() * rig.cy / rig.fy;
     rt.id = static_cast<int>(i);
     t.drawn = true;
-    raster.draw(rt);
+    projected.push_back(rt);
   }
-  // Slots for the triangles that won pixels; their Jacobian pieces and homographies.
-  ev->slot_of.assign(nt, -1);
-  ev->slot_tri.clear();
+  // Two threads draw two bands of rows, split where about half of the triangles' area lies
+  // above; a triangle across the split is drawn by both, clipped. Within a band the triangles are
+  // drawn in the same order as by one thread, so every pixel gets the same winner.
+  const int threads = level_.threads();
+  if (threads > 1 && projected.size() > 64) {
+    std::vector<double> area_by_row(static_cast<size_t>(level_.height()) + 1, 0.0);
+    double total = 0.0;
+    for (const TriangleRasterizer::Triangle& rt : projected) {
+      const double area = std::abs((rt.u[1] - rt.u[0]) * (rt.v[2] - rt.v[0]) - (rt.v[1] - rt.v[0]) * (rt.u[2] - rt.u[0]));
+      const double vc = (rt.v[0] + rt.v[1] + rt.v[2]) / 3.0;
+      area_by_row[static_cast<size_t>(std::clamp(static_cast<int>(vc), 0, level_.height()))] += area;
+      total += area;
+    }
+    int split = 0;
+    for (double acc = 0.0; split < level_.height() && acc < 0.5 * total; ++split) acc += area_by_row[static_cast<size_t>(split)];
+    auto band = [&](int b) {
+      const int first = b == 0 ? 0 : split, last = b == 0 ? split - 1 : level_.height() - 1;
+      for (const TriangleRasterizer::Triangle& rt : projected) {
+        if (std::max({rt.v[0], rt.v[1], rt.v[2]}) < first || std::min({rt.v[0], rt.v[1], rt.v[2]}) > last) continue;
+        raster.draw(rt, first, last);
+      }
+    };
+    tbb::task_arena arena(2);
+    arena.execute([&] { tbb::parallel_for(0, 2, band); });
+  } else {
+    for (const TriangleRasterizer::Triangle& rt : projected) raster.draw(rt);
+  }
+  // slots for the triangles that won pixels
+  slot_of_.assign(nt, -1);
+  slot_tri_.clear();
   const cv::Mat& labels = raster.labels();
-  for (int v = 0; v < height; ++v) {
+  for (int v = 0; v < level_.height(); ++v) {
     const int* lab = labels.ptr<int>(v);
     for (int u = raster.rowBegin(v); u <= raster.rowEnd(v); ++u) {
       const int ti = lab[u];
-      if (ti >= 0 && ev->slot_of[static_cast<size_t>(ti)] < 0) {
-        ev->slot_of[static_cast<size_t>(ti)] = static_cast<int>(ev->slot_tri.size());
-        ev->slot_tri.push_back(ti);
+      if (ti >= 0 && slot_of_[static_cast<size_t>(ti)] < 0) {
+        slot_of_[static_cast<size_t>(ti)] = static_cast<int>(slot_tri_.size());
+        slot_tri_.push_back(ti);
       }
     }
   }
+  raster_u_ = vertex_u_;
+  raster_v_ = vertex_v_;
+  rasterized_ = true;
+}
+
+/// Rasterizes the current surface (or keeps the last rasterization while the vertices have not
+/// moved by more than raster_reuse_px) and accumulates the normal-equation pieces and the cost.
+void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
+  const SurfaceAlignerOptions& opt = level_.options();
+  const AlignmentProblem& prob = level_.problem();
+  const StereoRig& rig = level_.rig();
+  std::vector<TriangleGeometry>& tris = level_.triangles();
+  const int height = level_.height(), threads = level_.threads();
+  const std::vector<PairContext> pc = level_.pairs(s);
+  const size_t np = pc.size();
+  const Eigen::Isometry3d& ctg = s.camera_T_ground;
+  const Eigen::Matrix3d k = rig.K();
+  const Eigen::Matrix3d kinv = k.inverse();
+  auto& hom = ws_->homographies;
+  TriangleRasterizer& raster = ws_->raster;
+  const auto t_raster = std::chrono::steady_clock::now();
+  // The active vertices in the image; how far they moved since the last rasterization.
+  const std::vector<int>& active = level_.active();
+  const size_t na = active.size();
+  vertex_u_.resize(na);
+  vertex_v_.resize(na);
+  vertex_ok_.resize(na);
+  bool reuse = rasterized_ && opt.raster_reuse_px > 0.0;
+  const double limit = opt.raster_reuse_px;
+  for (size_t a = 0; a < na; ++a) {
+    const Eigen::Vector2d xy = prob.grid->position(active[a]);
+    const Eigen::Vector3d xc = ctg * Eigen::Vector3d(xy.x(), xy.y(), s.heights[active[a]]);
+    const bool ok = xc.z() > 0.1;
+    vertex_ok_[a] = ok;
+    vertex_u_[a] = ok ? rig.fx * xc.x() / xc.z() + rig.cx : 0.0;
+    vertex_v_[a] = ok ? rig.fy * xc.y() / xc.z() + rig.cy : 0.0;
+    reuse = reuse && ok && std::abs(vertex_u_[a] - raster_u_[a]) <= limit && std::abs(vertex_v_[a] - raster_v_[a]) <= limit;
+  }
+  if (!reuse) {
+    rasterize(s);
+    ++rasterizations_;
+  }
+  ev->slot_of = slot_of_;
+  ev->slot_tri = slot_tri_;
+  // The planes of the triangles that own pixels, their Jacobians and, per pair, homographies.
   const size_t ns = ev->slot_tri.size();
   hom.resize(np * ns);
   for (size_t k2 = 0; k2 < ns; ++k2) {
     TriangleGeometry& t = tris[static_cast<size_t>(ev->slot_tri[k2])];
     const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
-    t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, t.heights_to_plane * z) * t.heights_to_plane;
+    const Eigen::Vector3d pqc = t.heights_to_plane * z;
+    if (reuse) PlaneGeometry::cameraPlane(ctg, pqc, &t.m);  // (drawn: the camera is not on its plane)
+    t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
     for (size_t j = 0; j < np; ++j) {
       const Eigen::Matrix3d h = k *
                                 (pc[j].target_T_reference.linear() +
@@ -117,6 +183,7 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
       for (int a = 0; a < 9; ++a) hh[static_cast<size_t>(a)] = static_cast<float>(h(a / 3, a % 3));
     }
   }
+  raster_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_raster).count();
   // Rows split into chunks of about equal pixel counts, one per thread.
   std::vector<int> bounds{0};
   {
@@ -198,25 +265,31 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
   }
 }
 
-/// The reference pixels of one row that take part: column, slot and per-pixel constants.
+/// The reference pixels of one row that take part (SoA): column, slot, triangle and the per-pixel
+/// constants of the inverse compositional Jacobian, in runs of one slot; and, per pair, the
+/// robust weight w and w * residual of each (0 where the sample is not used).
 struct PhotometricEvaluator::RowPixels {
+  int n = 0;
   std::vector<int> u, slot, tri;
-  std::vector<float> i0, c0, c1, c2, x;
-  void clear() {
-    u.clear();
-    slot.clear();
-    tri.clear();
-    i0.clear();
-    c0.clear();
-    c1.clear();
-    c2.clear();
-    x.clear();
+  std::vector<float> i0, c0, c1, x;
+  std::vector<int> run_begin;  ///< first pixel of each run of one slot; n closes the last
+  std::vector<float> w, we;
+  // per pair, scratch: the sample position in the target, its value, and what became of it
+  std::vector<float> uj, vj, ij;
+  std::vector<uint8_t> use;  ///< kUsed, kSkipped (no cost) or kOutside (the outside penalty)
+  explicit RowPixels(int width) {
+    const size_t s = static_cast<size_t>(width) + 1;
+    for (auto* a : {&u, &slot, &tri, &run_begin}) a->resize(s);
+    for (auto* a : {&i0, &c0, &c1, &x, &w, &we, &uj, &vj, &ij}) a->resize(s);
+    use.resize(s);
   }
 };
 
 /// The pixel loop over rows [v0, v1): residuals, robust weights and the inverse compositional
-/// Jacobians accumulated per triangle and pair. Sums run in float over the pixels of one
-/// triangle in a row and are flushed into the double accumulators when the triangle changes.
+/// Jacobians accumulated per triangle and pair. Sums run in float over the pixels of one run (one
+/// triangle in one row), with x relative to the run's first pixel so that the nearly
+/// rank-deficient 3x3 block of a triangle (its pixels' rays are nearly parallel) keeps its
+/// precision, and are flushed into the double accumulators at the end of each run.
 void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, const Evaluation& ev, int v0, int v1,
                                           Chunk* ch) const {
   const SurfaceAlignerOptions& opt = level_.options();
@@ -233,7 +306,7 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, co
   const float fx = static_cast<float>(rig.fx), fy = static_cast<float>(rig.fy);
   const float cx = static_cast<float>(rig.cx), cy = static_cast<float>(rig.cy);
   const cv::Mat& labels = raster.labels();
-  RowPixels px;
+  RowPixels px(level_.width());
   for (int v = v0; v < v1; ++v) {
     const int b = raster.rowBegin(v), e_col = raster.rowEnd(v);
     if (b > e_col) continue;
@@ -243,7 +316,7 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, co
     const float* gvrow = ref->grad_v.ptr<float>(v);
     const uint8_t* exrow = excluded ? excluded->ptr<uint8_t>(v) : nullptr;
     const float y = (static_cast<float>(v) - cy) / fy;
-    px.clear();
+    int n = 0, runs = 0, last_slot = -1;
     for (int u = b; u <= e_col; ++u) {
       const int tl = lab[u];
       if (tl < 0) continue;
@@ -256,22 +329,25 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, co
       if (i0 <= dark || i0 >= sat) continue;
       ch->tri_pixels[static_cast<size_t>(ti)]++;
       ch->tri_textured[static_cast<size_t>(ti)] += gurow[u] * gurow[u] + gvrow[u] * gvrow[u] >= gtex2;
-      const float x = (static_cast<float>(u) - cx) / fx;
-      const float gfu = gurow[u] * fx, gfv = gvrow[u] * fy;
-      px.u.push_back(u);
-      px.slot.push_back(ti);
-      px.tri.push_back(tl);
-      px.i0.push_back(i0);
-      px.c0.push_back(gfu);
-      px.c1.push_back(gfv);
-      px.c2.push_back(-(gfu * x + gfv * y));
-      px.x.push_back(x);
+      if (ti != last_slot) {
+        px.run_begin[static_cast<size_t>(runs++)] = n;
+        last_slot = ti;
+      }
+      const size_t k = static_cast<size_t>(n++);
+      px.u[k] = u;
+      px.slot[k] = ti;
+      px.tri[k] = tl;
+      px.i0[k] = i0;
+      px.c0[k] = gurow[u] * fx;
+      px.c1[k] = gvrow[u] * fy;
+      px.x[k] = (static_cast<float>(u) - cx) / fx;
     }
-    if (px.u.empty()) continue;
+    if (n == 0) continue;
+    px.n = n;
+    px.run_begin[static_cast<size_t>(runs)] = n;
     for (size_t j = 0; j < np; ++j) {
       const PairContext& p = pc[j];
-      const bool photo = p.photo_index >= 0;
-      dispatchRow(p, j, ns, v, y, px, ch, photo);
+      dispatchRow(p, j, ns, v, y, px, ch, runs);
     }
   }
   for (auto& pa : ch->pair) {
@@ -282,11 +358,12 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, co
 }
 
 /// One instantiation of pairRow per warp kind, world-fixed or not, row shift or not.
-void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, const RowPixels& px,
-                                       Chunk* ch, bool photo) const {
+void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, RowPixels& px,
+                                       Chunk* ch, int runs) const {
   auto with = [&](auto kind, auto world) {
-    if (p.row_shift) pairRow<decltype(kind)::value, decltype(world)::value, true>(p, j, ns, v, y, px, ch, photo);
-    else pairRow<decltype(kind)::value, decltype(world)::value, false>(p, j, ns, v, y, px, ch, photo);
+    if (p.row_shift) pairRow<decltype(kind)::value, true>(p, j, ns, v, px, ch);
+    else pairRow<decltype(kind)::value, false>(p, j, ns, v, px, ch);
+    accumulateRuns<decltype(world)::value>(p, j, y, px, runs, ch);
   };
   using H = std::integral_constant<int, kWarpHorizontal>;
   using A = std::integral_constant<int, kWarpAffine>;
@@ -300,13 +377,11 @@ void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns
   }
 }
 
-template <int kKind, bool kWorld, bool kShift>
-void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, int v, float y, const RowPixels& px,
-                                   Chunk* ch, bool photo) const {
+template <int kKind, bool kShift>
+void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, int v, RowPixels& px, Chunk* ch) const {
+  enum : uint8_t { kUsed = 0, kSkipped = 1, kOutside = 2 };
   const SurfaceAlignerOptions& opt = level_.options();
   const StereoRig& rig = level_.rig();
-  const std::vector<TriangleGeometry>& tris = level_.triangles();
-  constexpr int kStride = kWorld ? kStrideWorld : kStrideRig;
   const auto& hom = ws_->homographies;
   const cv::Mat& img = *p.image;
   const float wmax = static_cast<float>(img.cols - 1), hmax = static_cast<float>(img.rows - 1);
@@ -319,8 +394,6 @@ void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, in
   const float dark = static_cast<float>(opt.dark_level_grey);
   const float sat = static_cast<float>(opt.saturated_level_grey);
   const float gain = static_cast<float>(p.photometric.gain), bias = static_cast<float>(p.photometric.bias_grey);
-  const float tx = static_cast<float>(p.t_prime.x()), ty = static_cast<float>(p.t_prime.y()),
-              tz = static_cast<float>(p.t_prime.z());
   const float vf = static_cast<float>(v);
   const float cx = static_cast<float>(rig.cx), cy = static_cast<float>(rig.cy);
   const float ifx = static_cast<float>(1.0 / rig.fx), ify = static_cast<float>(1.0 / rig.fy);
@@ -328,139 +401,187 @@ void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, in
   const cv::Mat* tex = p.target_excluded;
   const uint8_t* rex = p.reference_excluded ? p.reference_excluded->ptr<uint8_t>(v) : nullptr;
   PairAccumulator& pa = ch->pair[j];
-  double* tri_acc = ch->tri[j].data();
-  // Sums in double: a triangle's 3x3 block is nearly rank-deficient (its pixels' rays are
-  // nearly parallel); float sums make it indefinite.
-  double run[kStride];
-  int run_slot = -1;
-  auto flush = [&]() {
-    if (run_slot < 0) return;
-    double* a = tri_acc + static_cast<size_t>(run_slot) * kStride;
-    for (int k = 0; k < kStride; ++k) a[k] += run[k];
-  };
-  // per-row global sums in float, flushed to double at the end of the row
-  double gpp[3] = {0, 0, 0}, gpe[2] = {0, 0}, gmm[21] = {}, gme[6] = {}, gmp[12] = {};
-  float cost = 0.0f;
-  int valid = 0, outside = 0;
-  const bool odd_row = (v & 1) != 0;
-  const size_t n = px.u.size();
-  for (size_t k = 0; k < n; ++k) {
-    const int u = px.u[k];
-    if (p.checkerboard && (((u & 1) != 0) != odd_row)) continue;
-    if (rex && rex[u]) continue;
-    const int slot = px.slot[k];
-    const auto& h = hom[j * ns + static_cast<size_t>(slot)];
-    const float uf = static_cast<float>(u);
-    float uj, vj;
-    if (kKind == kWarpHorizontal) {
-      uj = h[0] * uf + h[1] * vf + h[2];
-      vj = vf;
-    } else if (kKind == kWarpAffine) {
-      uj = h[0] * uf + h[1] * vf + h[2];
-      vj = h[3] * uf + h[4] * vf + h[5];
-    } else {
-      const float wz = h[6] * uf + h[7] * vf + h[8];
-      if (!(wz > 1e-6f)) {
-        cost += outside_cost;
-        ++outside;
-        continue;
+  const int n = px.n;
+  const int* uk = px.u.data();
+  float* ujk = px.uj.data();
+  float* vjk = px.vj.data();
+  float* ijk = px.ij.data();
+  uint8_t* use = px.use.data();
+  // 1. where each pixel lands in the target (one homography per run)
+  for (int r = 0; px.run_begin[static_cast<size_t>(r)] < n; ++r) {
+    const int a = px.run_begin[static_cast<size_t>(r)], b = px.run_begin[static_cast<size_t>(r) + 1];
+    const auto& h = hom[j * ns + static_cast<size_t>(px.slot[static_cast<size_t>(a)])];
+    for (int k = a; k < b; ++k) {
+      const float uf = static_cast<float>(uk[k]);
+      float uj, vj;
+      uint8_t state = kUsed;
+      if (kKind == kWarpHorizontal) {
+        uj = h[0] * uf + h[1] * vf + h[2];
+        vj = vf;
+      } else if (kKind == kWarpAffine) {
+        uj = h[0] * uf + h[1] * vf + h[2];
+        vj = h[3] * uf + h[4] * vf + h[5];
+      } else {
+        const float wz = h[6] * uf + h[7] * vf + h[8];
+        state = wz > 1e-6f ? kUsed : kOutside;
+        const float iw = 1.0f / (state == kUsed ? wz : 1.0f);
+        uj = (h[0] * uf + h[1] * vf + h[2]) * iw;
+        vj = (h[3] * uf + h[4] * vf + h[5]) * iw;
       }
-      const float iw = 1.0f / wz;
-      uj = (h[0] * uf + h[1] * vf + h[2]) * iw;
-      vj = (h[3] * uf + h[4] * vf + h[5]) * iw;
-    }
-    if (kShift) {  // the target's rectification error (AlignerTarget::row_shift_px)
-      const float xn = (uj - cx) * ifx, yn = (vj - cy) * ify;
-      vj += sh[0] + xn * (sh[1] + sh[3] * yn + sh[4] * xn) + yn * (sh[2] + sh[5] * yn);
-    }
-    if (!(uj >= 0.0f && vj >= 0.0f && uj < wmax && vj < hmax)) {
-      cost += outside_cost;
-      ++outside;
-      continue;
-    }
-    if (tex && tex->at<uint8_t>(static_cast<int>(vj + 0.5f), static_cast<int>(uj + 0.5f))) continue;
-    const float ij = bilinear(img, uj, vj);
-    if (ij <= dark || ij >= sat) continue;
-    const float i0 = px.i0[k];
-    const float e = i0 - (gain * ij + bias);
-    const float w = robust ? 1.0f / (1.0f + e * e * inv_c2) : 1.0f;
-    cost += rho(e);
-    ++valid;
-    if ((valid & 7) == 0) {
-      ch->abs_residuals.push_back(std::abs(e));
-      ch->pair_abs_residuals[j].push_back(std::abs(e));
-    }
-    if (slot != run_slot) {
-      flush();
-      run_slot = slot;
-      std::fill(run, run + kStride, 0.0);
-    }
-    const double c0 = px.c0[k], c1 = px.c1[k], c2 = px.c2[k], x = px.x[k];
-    const double sc = c0 * tx + c1 * ty + c2 * tz;
-    const double j0 = sc * x, j1 = sc * y, j2 = sc;
-    const double ew = e, w0 = w * j0, w1 = w * j1, w2 = w * j2;
-    run[0] += w0 * j0;
-    run[1] += w0 * j1;
-    run[2] += w0 * j2;
-    run[3] += w1 * j1;
-    run[4] += w1 * j2;
-    run[5] += w2 * j2;
-    run[6] += w0 * ew;
-    run[7] += w1 * ew;
-    run[8] += w2 * ew;
-    if (photo) {
-      run[9] += w0 * i0;
-      run[10] += w0;
-      run[11] += w1 * i0;
-      run[12] += w1;
-      run[13] += w2 * i0;
-      run[14] += w2;
-      gpp[0] += static_cast<double>(w) * i0 * i0;
-      gpp[1] += w * i0;
-      gpp[2] += w;
-      gpe[0] += w * ew * i0;
-      gpe[1] += w * ew;
-    }
-    if (kWorld) {
-      const Eigen::Vector3d& m = tris[static_cast<size_t>(px.tri[k])].m;
-      const double rho_u = m.x() * x + m.y() * y + m.z();
-      const double jm[6] = {rho_u * c0, rho_u * c1, rho_u * c2, y * c2 - c1, c0 - x * c2, x * c1 - y * c0};
-      double* am = run + 15;
-      for (int c = 0; c < 6; ++c) {
-        am[c] += w0 * jm[c];
-        am[6 + c] += w1 * jm[c];
-        am[12 + c] += w2 * jm[c];
+      if (kShift) {  // the target's rectification error (AlignerTarget::row_shift_px)
+        const float xn = (uj - cx) * ifx, yn = (vj - cy) * ify;
+        vj += sh[0] + xn * (sh[1] + sh[3] * yn + sh[4] * xn) + yn * (sh[2] + sh[5] * yn);
       }
-      int q = 0;
-      for (int r = 0; r < 6; ++r) {
-        const double wr = w * jm[r];
-        for (int c = r; c < 6; ++c) gmm[q++] += wr * jm[c];
-        gme[r] += wr * ew;
-        if (photo) {
-          gmp[2 * r] += wr * i0;
-          gmp[2 * r + 1] += wr;
-        }
-      }
+      if (!(uj >= 0.0f && vj >= 0.0f && uj < wmax && vj < hmax)) state = kOutside;
+      ujk[k] = uj;
+      vjk[k] = vj;
+      use[k] = state;
     }
   }
-  flush();
+  // 2. the samples (pixels this pair skips: no cost)
+  const bool odd_row = (v & 1) != 0;
+  for (int k = 0; k < n; ++k) {
+    const int u = uk[k];
+    if ((p.checkerboard && (((u & 1) != 0) != odd_row)) || (rex && rex[u])) {
+      use[k] = kSkipped;
+      continue;
+    }
+    if (use[k] != kUsed) continue;
+    if (tex && tex->at<uint8_t>(static_cast<int>(vjk[k] + 0.5f), static_cast<int>(ujk[k] + 0.5f))) {
+      use[k] = kSkipped;
+      continue;
+    }
+    const float ij = bilinear(img, ujk[k], vjk[k]);
+    ijk[k] = ij;
+    if (ij <= dark || ij >= sat) use[k] = kSkipped;
+  }
+  // 3. residuals, robust weights and the cost (branch-free)
+  const float* i0k = px.i0.data();
+  float* wk = px.w.data();
+  float* wek = px.we.data();
+  float cost = 0.0f;
+  int valid = 0, outside = 0;
+#pragma omp simd reduction(+ : cost, valid, outside)
+  for (int k = 0; k < n; ++k) {
+    const bool used = use[k] == kUsed;
+    const float e = used ? i0k[k] - (gain * ijk[k] + bias) : 0.0f;
+    const float w = robust ? 1.0f / (1.0f + e * e * inv_c2) : 1.0f;
+    cost += used ? rho(e) : (use[k] == kOutside ? outside_cost : 0.0f);
+    valid += used;
+    outside += use[k] == kOutside;
+    wk[k] = used ? w : 0.0f;
+    wek[k] = used ? w * e : 0.0f;
+  }
   pa.cost += cost;
   pa.valid += valid;
   pa.outside += outside;
-  if (photo) {
-    pa.pp(0, 0) += gpp[0];
-    pa.pp(0, 1) += gpp[1];
-    pa.pp(1, 1) += gpp[2];
-    pa.pe(0) += gpe[0];
-    pa.pe(1) += gpe[1];
+  // 4. every 8th used sample's |residual|, for the medians
+  for (int k = 0, count = 0; k < n; ++k) {
+    if (use[k] != kUsed || (++count & 7) != 0) continue;
+    const float e = std::abs(i0k[k] - (gain * ijk[k] + bias));
+    ch->abs_residuals.push_back(e);
+    ch->pair_abs_residuals[j].push_back(e);
   }
-  if (kWorld) {
-    int q = 0;
-    for (int r = 0; r < 6; ++r) {
-      for (int c = r; c < 6; ++c) pa.mm(r, c) += gmm[q++];
-      pa.me(r) += gme[r];
-      pa.mp(r, 0) += gmp[2 * r];
-      pa.mp(r, 1) += gmp[2 * r + 1];
+}
+
+template <bool kWorld>
+void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs,
+                                          Chunk* ch) const {
+  constexpr int kStride = kWorld ? kStrideWorld : kStrideRig;
+  const std::vector<TriangleGeometry>& tris = level_.triangles();
+  const float tx = static_cast<float>(p.t_prime.x()), ty = static_cast<float>(p.t_prime.y()),
+              tz = static_cast<float>(p.t_prime.z());
+  const double yd = y;
+  PairAccumulator& pa = ch->pair[j];
+  double* tri_acc = ch->tri[j].data();
+  const float* wk = px.w.data();
+  const float* wek = px.we.data();
+  const float* c0k = px.c0.data();
+  const float* c1k = px.c1.data();
+  const float* xk = px.x.data();
+  const float* i0k = px.i0.data();
+  for (int r = 0; r < runs; ++r) {
+    const int a = px.run_begin[static_cast<size_t>(r)], b = px.run_begin[static_cast<size_t>(r) + 1];
+    const float xr = xk[a];
+    // plane-increment block: sc = c . t' (c2 = -(c0 x + c1 y)), J = sc (x, y, 1); y is constant in
+    // the row, so its sums are multiples of those without it
+    float s0 = 0, s1 = 0, s2 = 0, e0 = 0, e1 = 0, p0 = 0, p1 = 0, q0 = 0, q1 = 0;
+    float g0 = 0, g1 = 0, g2 = 0, h0 = 0, h1 = 0;
+#pragma omp simd reduction(+ : s0, s1, s2, e0, e1, p0, p1, q0, q1, g0, g1, g2, h0, h1)
+    for (int k = a; k < b; ++k) {
+      const float w = wk[k], we = wek[k], i0 = i0k[k], dx = xk[k] - xr;
+      const float c0 = c0k[k], c1 = c1k[k];
+      const float sc = c0 * tx + c1 * ty - (c0 * xk[k] + c1 * y) * tz;
+      const float ws = w * sc, wes = we * sc;
+      s0 += ws * sc;
+      s1 += ws * sc * dx;
+      s2 += ws * sc * dx * dx;
+      e0 += wes;
+      e1 += wes * dx;
+      p0 += ws * i0;
+      p1 += ws * i0 * dx;
+      q0 += ws;
+      q1 += ws * dx;
+      g0 += w * i0 * i0;
+      g1 += w * i0;
+      g2 += w;
+      h0 += we * i0;
+      h1 += we;
+    }
+    if (g2 == 0.0f) continue;  // no sample of this run was used
+    const double x0 = xr;
+    const double S1 = s1 + x0 * s0, S2 = s2 + 2.0 * x0 * s1 + x0 * x0 * s0;
+    double* acc = tri_acc + static_cast<size_t>(px.slot[static_cast<size_t>(a)]) * kStride;
+    acc[0] += S2;
+    acc[1] += yd * S1;
+    acc[2] += S1;
+    acc[3] += yd * yd * s0;
+    acc[4] += yd * s0;
+    acc[5] += s0;
+    acc[6] += e1 + x0 * e0;
+    acc[7] += yd * e0;
+    acc[8] += e0;
+    acc[9] += p1 + x0 * p0;
+    acc[10] += q1 + x0 * q0;
+    acc[11] += yd * p0;
+    acc[12] += yd * q0;
+    acc[13] += p0;
+    acc[14] += q0;
+    pa.pp(0, 0) += g0;
+    pa.pp(0, 1) += g1;
+    pa.pp(1, 1) += g2;
+    pa.pe(0) += h0;
+    pa.pe(1) += h1;
+    if (kWorld) {
+      // motion: Jm = (rho c0, rho c1, rho c2, y c2 - c1, c0 - x c2, x c1 - y c0), rho the run's plane
+      const Eigen::Vector3d& m = tris[static_cast<size_t>(px.tri[static_cast<size_t>(a)])].m;
+      const float mx = static_cast<float>(m.x()), mr = static_cast<float>(m.y() * y + m.z());
+      // Jm as one 8-lane vector per pixel (lanes 6, 7 zero); the sums are its outer products
+      Float8 hm[6] = {}, me = {}, mp = {}, mq = {}, f = {}, fx = {};
+      for (int k = a; k < b; ++k) {
+        const float w = wk[k], we = wek[k], x = xk[k], c0 = c0k[k], c1 = c1k[k];
+        const float c2 = -(c0 * x + c1 * y);
+        const float rho = mx * x + mr;
+        const Float8 jm = {rho * c0, rho * c1, rho * c2, y * c2 - c1, c0 - x * c2, x * c1 - y * c0, 0.0f, 0.0f};
+        const float ws = w * (c0 * tx + c1 * ty + c2 * tz);
+        const Float8 wj = w * jm;
+        for (int r2 = 0; r2 < 6; ++r2) hm[r2] += wj[r2] * jm;
+        me += we * jm;
+        mp += i0k[k] * wj;
+        mq += wj;
+        f += ws * jm;
+        fx += (ws * (x - xr)) * jm;
+      }
+      double* am = acc + 15;
+      for (int r2 = 0; r2 < 6; ++r2) {
+        am[r2] += fx[r2] + x0 * f[r2];
+        am[6 + r2] += yd * f[r2];
+        am[12 + r2] += f[r2];
+        for (int c3 = r2; c3 < 6; ++c3) pa.mm(r2, c3) += hm[r2][c3];
+        pa.me(r2) += me[r2];
+        pa.mp(r2, 0) += mp[r2];
+        pa.mp(r2, 1) += mq[r2];
+      }
     }
   }
 }
