@@ -1,6 +1,7 @@
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 
 #include <Eigen/Dense>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -310,17 +311,25 @@ void IncrementalEstimator::initialHeights(const GroundGrid& w, const Eigen::Isom
     todo.push_back(v);
   }
   if (known < 20) return;
+  // Gauss-Seidel sweeps over the unknown vertices, each the mean of its (up to four) neighbours,
+  // whose indices are looked up once.
+  std::vector<std::array<int, 4>> neighbours(todo.size());
+  for (size_t i = 0; i < todo.size(); ++i) {
+    const int r = w.rowOf(todo[i]), c = w.colOf(todo[i]);
+    int n = 0;
+    neighbours[i].fill(-1);
+    for (const auto& d : {std::make_pair(0, 1), std::make_pair(0, -1), std::make_pair(1, 0), std::make_pair(-1, 0)}) {
+      if (w.contains(r + d.first, c + d.second)) neighbours[i][static_cast<size_t>(n++)] = w.index(r + d.first, c + d.second);
+    }
+  }
+  double* h = heights->data();
   for (int sweep = 0; sweep < 60; ++sweep) {
-    for (int v : todo) {
-      const int r = w.rowOf(v), c = w.colOf(v);
+    for (size_t i = 0; i < todo.size(); ++i) {
+      const std::array<int, 4>& nb = neighbours[i];
       double sum = 0.0;
       int n = 0;
-      for (const auto& d : {std::make_pair(0, 1), std::make_pair(0, -1), std::make_pair(1, 0), std::make_pair(-1, 0)}) {
-        if (!w.contains(r + d.first, c + d.second)) continue;
-        sum += (*heights)[w.index(r + d.first, c + d.second)];
-        ++n;
-      }
-      if (n > 0) (*heights)[v] = sum / n;
+      for (int k = 0; k < 4 && nb[static_cast<size_t>(k)] >= 0; ++k, ++n) sum += h[nb[static_cast<size_t>(k)]];
+      if (n > 0) h[todo[i]] = sum / n;
     }
   }
 }

@@ -88,8 +88,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("temporal_finest_level", &e.temporal_finest_level, "finest pyramid level of the temporal pairs and motion", true);
   i("min_temporal_width_px", &e.min_temporal_width_px, "... finer where that level is narrower than this [px]", true);
   i("num_threads", &a.num_threads, "threads of the pixel loop");
-  d("raster_reuse_px", &a.raster_reuse_px,
-    "an evaluation keeps the last rasterization while no vertex moved more than this in the image (0: never) [px]", true);
+  d("cg_tolerance", &a.cg_tolerance, "relative residual at which the conjugate-gradient solves of a step stop");
   b("use_map_prior", &e.use_map_prior, "tie vertices to their fused map values (C_P)", true);
   d("prior_weight", &e.prior_weight, "scale of the map information in C_P", true);
   d("dark_level_grey", &a.dark_level_grey, "pixels at or below are not used [grey]", true);

@@ -88,10 +88,11 @@ bool RectificationMonitor::refineWithShear(const cv::Mat& left, const cv::Mat& r
         const double ir = sample(right, ur, vr);
         const double gu = gain * sample(right_gu, ur, vr), gv = gain * sample(right_gv, ur, vr);
         const double e = gain * ir + bias - lrow[u0 + i];
-        Vector6d jac;
-        jac << gu, gv, gu * i, gu * j, ir, 1.0;
-        h.selfadjointView<Eigen::Lower>().rankUpdate(jac);
-        g += e * jac;
+        const double jac[6] = {gu, gv, gu * i, gu * j, ir, 1.0};
+        for (int rr = 0; rr < 6; ++rr) {
+          for (int cc = 0; cc <= rr; ++cc) h(rr, cc) += jac[rr] * jac[cc];  // the lower triangle
+          g[rr] += e * jac[rr];
+        }
       }
     }
     h = h.selfadjointView<Eigen::Lower>();

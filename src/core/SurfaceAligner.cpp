@@ -25,7 +25,6 @@ bool SurfaceAlignerOptions::isValid(std::string* why) const {
   }
   if (!(max_lateral_m > 0.0)) return bad("max_lateral_m must be > 0");
   if (border_margin_px < 1) return bad("border_margin_px must be >= 1");
-  if (!(raster_reuse_px >= 0.0) || !std::isfinite(raster_reuse_px)) return bad("raster_reuse_px must be finite and >= 0");
   if (!(saturated_level_grey > dark_level_grey)) return bad("saturated_level_grey must exceed dark_level_grey");
   if (!(textured_gradient_grey_per_px >= 0.0) || !std::isfinite(textured_gradient_grey_per_px)) {
     return bad("textured_gradient_grey_per_px must be finite and >= 0");
@@ -185,19 +184,18 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   // linearization (the state before the last accepted step), which differs only to second order.
   level.fillPixels(*ev, &report);
   report.raster_ms = evaluator.rasterMs();
-  report.rasterizations = evaluator.rasterizations();
   report.final_cost = ev->total();
   report.data_cost = ev->data_cost;
   report.smoothness_cost = ev->smoothness_cost;
   report.prior_cost = ev->prior_cost;
   report.valid_pixels = 0;
   report.outside_pixels = 0;
-  for (const auto& pa : ev->sums().pair) {
+  for (const auto& pa : ev->pair) {
     report.valid_pixels += pa.valid;
     report.outside_pixels += pa.outside;
   }
-  report.median_abs_residual_grey = median(ev->sums().abs_residuals);
-  for (const auto& r : ev->sums().pair_abs_residuals) report.target_median_abs_residual_grey.push_back(median(r));
+  report.median_abs_residual_grey = median(ev->abs_residuals);
+  for (const auto& r : ev->pair_abs_residuals) report.target_median_abs_residual_grey.push_back(median(r));
   return report;
 }
 

@@ -47,37 +47,36 @@ struct PairAccumulator {
   }
 };
 
-/// One thread's share of an evaluation.
-struct Chunk {
-  std::vector<std::vector<double>> tri;  ///< [pair] stride * slots
+/// One thread's share of an evaluation: its pairs' sums and residual samples.
+struct ThreadPart {
   std::vector<PairAccumulator> pair;
-  std::vector<int> tri_pixels;
-  std::vector<int> tri_excluded;  ///< pixels of the triangle masked out as obstacles
-  std::vector<int> tri_textured;  ///< its used pixels with a gradient of at least textured_gradient
   std::vector<float> abs_residuals;
   std::vector<std::vector<float>> pair_abs_residuals;  ///< [pair] the same samples, per pair
-  void reset(const std::vector<int>& strides, size_t slots) {
-    tri.resize(strides.size());
-    for (size_t j = 0; j < strides.size(); ++j) tri[j].assign(static_cast<size_t>(strides[j]) * slots, 0.0);
-    pair.assign(strides.size(), PairAccumulator());
-    tri_pixels.assign(slots, 0);
-    tri_excluded.assign(slots, 0);
-    tri_textured.assign(slots, 0);
+  void reset(size_t pairs) {
+    pair.assign(pairs, PairAccumulator());
     abs_residuals.clear();
-    pair_abs_residuals.assign(strides.size(), {});
+    pair_abs_residuals.assign(pairs, {});
   }
 };
 
 struct Evaluation {
-  std::vector<Chunk> chunks;  ///< chunks[0] holds the merged sums after evaluate()
   /// Triangles that own at least one pixel get a slot; accumulators are per slot.
   std::vector<int> slot_of;   ///< triangle -> slot or -1
   std::vector<int> slot_tri;  ///< slot -> triangle
+  // Per slot (each thread writes the slots of its own range):
+  std::vector<std::vector<double>> tri;  ///< [pair] stride * slots
+  std::vector<int> tri_pixels;
+  std::vector<int> tri_excluded;  ///< pixels of the triangle masked out as obstacles
+  std::vector<int> tri_textured;  ///< its used pixels with a gradient of at least textured_gradient
+  // Per pair, merged over the threads:
+  std::vector<PairAccumulator> pair;
+  std::vector<float> abs_residuals;  ///< every 8th used sample's |residual|, all pairs
+  std::vector<std::vector<float>> pair_abs_residuals;  ///< [pair] the same samples, per pair
+  std::vector<ThreadPart> parts;  ///< per thread, before the merge
   std::vector<double> smooth_residual;  ///< per stencil: w (z_a - 2 z_b + z_d)
   std::vector<double> smooth_weight;    ///< per stencil: robust (IRLS) weight
   double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
   double total() const { return data_cost + smoothness_cost + prior_cost; }
-  const Chunk& sums() const { return chunks[0]; }
 };
 
 }  // namespace aligner

@@ -29,36 +29,38 @@ class PhotometricEvaluator {
   PhotometricEvaluator(AlignmentLevel& level, EvaluatorWorkspace* workspace) : level_(level), ws_(workspace) {}
 
   void evaluate(const SurfaceState& s, Evaluation* ev);
-  /// Time spent in rasterization, slots and homographies so far [ms], and the rasterizations.
+  /// Time spent in rasterization, slots and homographies so far [ms].
   double rasterMs() const { return raster_ms_; }
-  int rasterizations() const { return rasterizations_; }
   /// The rasterization of the last evaluation (labels = triangle indices, inverse depth).
   const TriangleRasterizer& raster() const { return ws_->raster; }
 
  private:
   struct RowPixels;
-  void accumulateRows(const std::vector<PairContext>& pc, const Evaluation& ev, int v0, int v1, Chunk* ch) const;
+  /// Rows [v0, v1), the pixels of slots [slot_begin, slot_end) only.
+  void accumulateRows(const std::vector<PairContext>& pc, Evaluation* ev, int v0, int v1, int slot_begin,
+                      int slot_end, ThreadPart* part) const;
   /// One image pair over one row: residuals and weights (pairRow), then the sums (accumulateRuns).
-  void dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, RowPixels& px, Chunk* ch,
-                   int runs) const;
+  void dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, RowPixels& px, Evaluation* ev,
+                   ThreadPart* part, int runs) const;
   template <int kKind, bool kShift>
-  void pairRow(const PairContext& p, size_t j, size_t ns, int v, RowPixels& px, Chunk* ch) const;
+  void pairRow(const PairContext& p, size_t j, size_t ns, int v, RowPixels& px, ThreadPart* part) const;
   template <bool kWorld>
-  void accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs, Chunk* ch) const;
+  void accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs, Evaluation* ev,
+                      ThreadPart* part) const;
 
   /// Rasterizes the surface at state s (the vertices projected in vertex_u_ / vertex_v_) and
-  /// assigns slots to the triangles that won pixels.
+  /// assigns slots, in raster order, to the triangles that won pixels.
   void rasterize(const SurfaceState& s);
 
   AlignmentLevel& level_;
   EvaluatorWorkspace* ws_;
-  // the active vertices in the reference image at the evaluated state, and at the last rasterization
-  std::vector<double> vertex_u_, vertex_v_, raster_u_, raster_v_;
+  // the active vertices in the reference image at the evaluated state
+  std::vector<double> vertex_u_, vertex_v_;
   std::vector<uint8_t> vertex_ok_;  ///< in front of the camera
-  bool rasterized_ = false;
   double raster_ms_ = 0.0;
-  int rasterizations_ = 0;
-  std::vector<int> slot_of_, slot_tri_;  ///< the last rasterization's slots
+  std::vector<int> slot_of_, slot_tri_;  ///< the rasterization's slots
+  std::vector<int> slot_last_row_;       ///< per slot: the last row with its pixels
+  std::vector<int> slots_before_row_;    ///< per row: slots first seen above it
 };
 
 }  // namespace aligner

@@ -131,9 +131,9 @@ void AlignmentLevel::fillPixels(const Evaluation& ev, AlignmentReport* report) c
   for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
     const TriangleGeometry& t = tris_[static_cast<size_t>(ev.slot_tri[k2])];
     for (int a = 0; a < 3; ++a) {
-      report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_pixels[k2];
-      report->vertex_excluded_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_excluded[k2];
-      report->vertex_textured_pixels[t.vertex[static_cast<size_t>(a)]] += ev.sums().tri_textured[k2];
+      report->vertex_pixels[t.vertex[static_cast<size_t>(a)]] += ev.tri_pixels[k2];
+      report->vertex_excluded_pixels[t.vertex[static_cast<size_t>(a)]] += ev.tri_excluded[k2];
+      report->vertex_textured_pixels[t.vertex[static_cast<size_t>(a)]] += ev.tri_textured[k2];
     }
   }
 }
@@ -252,35 +252,66 @@ void AlignmentLevel::buildSmoothness(const GroundGrid& g) {
 }
 
 void AlignmentLevel::buildPattern() {
+  // Column a's rows are the vertices sharing a triangle or a stencil with a, and a itself. Built
+  // column by column from each vertex's incident triangles and stencils (counting sort), with a
+  // marker array against duplicates; each column's rows sorted; then every triangle's and
+  // stencil's 3x3 block is located through the column's row positions.
   const int na = activeCount();
-  std::vector<Eigen::Triplet<double>> trip;
-  trip.reserve(tris_.size() * 9 + static_cast<size_t>(na) + stencils_.size() * 9);
+  const size_t nt = tris_.size(), nst = stencils_.size();
+  // incidence: element e = triangle t (e = t) or stencil s (e = nt + s), per vertex
+  std::vector<int> start(static_cast<size_t>(na) + 1, 0);
   for (const auto& t : tris_)
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) trip.emplace_back(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)], 0.0);
-  for (int a = 0; a < na; ++a) trip.emplace_back(a, a, 0.0);
+    for (int v : t.local) ++start[static_cast<size_t>(v) + 1];
   for (const auto& st : stencils_)
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) trip.emplace_back(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)], 0.0);
-  hzz_pattern_.resize(na, na);
-  hzz_pattern_.setFromTriplets(trip.begin(), trip.end());
-  hzz_pattern_.makeCompressed();
-  auto index = [this](int r, int c) {
-    const int* begin = hzz_pattern_.innerIndexPtr() + hzz_pattern_.outerIndexPtr()[c];
-    const int* end = hzz_pattern_.innerIndexPtr() + hzz_pattern_.outerIndexPtr()[c + 1];
-    const int* it = std::lower_bound(begin, end, r);
-    return static_cast<int>(it - hzz_pattern_.innerIndexPtr());
+    for (int v : st.v) ++start[static_cast<size_t>(v) + 1];
+  for (int a = 0; a < na; ++a) start[static_cast<size_t>(a) + 1] += start[static_cast<size_t>(a)];
+  std::vector<int> incident(static_cast<size_t>(start.back()));
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (size_t t = 0; t < nt; ++t)
+    for (int v : tris_[t].local) incident[static_cast<size_t>(fill[static_cast<size_t>(v)]++)] = static_cast<int>(t);
+  for (size_t s = 0; s < nst; ++s)
+    for (int v : stencils_[s].v) incident[static_cast<size_t>(fill[static_cast<size_t>(v)]++)] = static_cast<int>(nt + s);
+  auto vertices = [&](int e) -> const std::array<int, 3>& {
+    return e < static_cast<int>(nt) ? tris_[static_cast<size_t>(e)].local : stencils_[static_cast<size_t>(e) - nt].v;
   };
-  for (auto& t : tris_)
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c)
-        t.value_index[static_cast<size_t>(r * 3 + c)] = index(t.local[static_cast<size_t>(r)], t.local[static_cast<size_t>(c)]);
+  std::vector<int> mark(static_cast<size_t>(na), -1), pos(static_cast<size_t>(na), 0);
+  std::vector<int> outer(static_cast<size_t>(na) + 1, 0), inner;
+  inner.reserve(static_cast<size_t>(na) * 20);
+  std::vector<int> col;
   diag_index_.resize(static_cast<size_t>(na));
-  for (int a = 0; a < na; ++a) diag_index_[static_cast<size_t>(a)] = index(a, a);
-  for (auto& st : stencils_)
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b)
-        st.idx[static_cast<size_t>(a * 3 + b)] = index(st.v[static_cast<size_t>(a)], st.v[static_cast<size_t>(b)]);
+  for (int a = 0; a < na; ++a) {
+    col.clear();
+    col.push_back(a);
+    mark[static_cast<size_t>(a)] = a;
+    for (int k = start[static_cast<size_t>(a)]; k < start[static_cast<size_t>(a) + 1]; ++k)
+      for (int r : vertices(incident[static_cast<size_t>(k)]))
+        if (mark[static_cast<size_t>(r)] != a) {
+          mark[static_cast<size_t>(r)] = a;
+          col.push_back(r);
+        }
+    std::sort(col.begin(), col.end());
+    const int base = static_cast<int>(inner.size());
+    for (size_t k = 0; k < col.size(); ++k) pos[static_cast<size_t>(col[k])] = base + static_cast<int>(k);
+    inner.insert(inner.end(), col.begin(), col.end());
+    outer[static_cast<size_t>(a) + 1] = static_cast<int>(inner.size());
+    diag_index_[static_cast<size_t>(a)] = pos[static_cast<size_t>(a)];
+    // the blocks' entries in this column
+    for (int k = start[static_cast<size_t>(a)]; k < start[static_cast<size_t>(a) + 1]; ++k) {
+      const int e = incident[static_cast<size_t>(k)];
+      const std::array<int, 3>& ev = vertices(e);
+      std::array<int, 9>& idx = e < static_cast<int>(nt) ? tris_[static_cast<size_t>(e)].value_index
+                                                         : stencils_[static_cast<size_t>(e) - nt].idx;
+      for (int cc = 0; cc < 3; ++cc) {
+        if (ev[static_cast<size_t>(cc)] != a) continue;
+        for (int rr = 0; rr < 3; ++rr) idx[static_cast<size_t>(rr * 3 + cc)] = pos[static_cast<size_t>(ev[static_cast<size_t>(rr)])];
+      }
+    }
+  }
+  hzz_pattern_.resize(na, na);
+  hzz_pattern_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), hzz_pattern_.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), hzz_pattern_.innerIndexPtr());
+  std::fill(hzz_pattern_.valuePtr(), hzz_pattern_.valuePtr() + inner.size(), 0.0);
 }
 
 }  // namespace aligner

@@ -66,15 +66,22 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
   const std::vector<TriangleGeometry>& tris = level_.triangles();
   const std::vector<int>& active = level_.active();
   const int control_count = level_.controlCount();
-  const Chunk& sum = ev.sums();
+  const Evaluation& sum = ev;
   const std::vector<PairContext> pc = level_.pairs(s);
   const int na = level_.activeCount();
   const int ng = level_.globalCount();
-  // Height block on the fixed pattern: smoothness (constant) + data + prior.
+  // Height block on the fixed pattern: smoothness + data + prior.
   SpMat& hzz = hzz_;
   Eigen::Map<Eigen::VectorXd> values(hzz.valuePtr(), hzz.nonZeros());
   values.setZero();
   Eigen::VectorXd gz = Eigen::VectorXd::Zero(na);
+  Eigen::VectorXd data_diag = Eigen::VectorXd::Zero(na);
+  // rows: heights (row-major: a triangle's rows are written together)
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> hzg_rows =
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(na, ng);
+  Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
+  Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
+  const double ks = level_.dataScale();
   static constexpr double kCoef[3] = {1.0, -2.0, 1.0};
   for (size_t k = 0; k < level_.stencils().size(); ++k) {
     const Stencil& st = level_.stencils()[k];
@@ -85,29 +92,15 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
       for (int b = 0; b < 3; ++b) values[st.idx[a * 3 + b]] += ww * kCoef[a] * kCoef[b];
     }
   }
-  Eigen::MatrixXd hzg = Eigen::MatrixXd::Zero(na, ng);
-  Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
-  Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
-  Eigen::VectorXd data_diag = Eigen::VectorXd::Zero(na);
-  const double ks = level_.dataScale();
   for (size_t j = 0; j < pc.size(); ++j) {
     const PairContext& p = pc[j];
     const bool rig = prob.targets[j].rig_fixed;
     const int pi = p.photo_index;
-    const PairAccumulator& pa = sum.pair[j];
     const int stride = level_.strides()[j];
-    if (pi >= 0) {
-      hgg.block<2, 2>(pi, pi) += ks * pa.pp;
-      gg.segment<2>(pi) += ks * pa.pe;
-    }
-    if (p.world) {
-      hgg.topLeftCorner<6, 6>() += ks * pa.mm;
-      gg.head<6>() += ks * pa.me;
-      if (pi >= 0) {
-        hgg.block<6, 2>(0, pi) += ks * pa.mp;
-        hgg.block<2, 6>(pi, 0) += ks * pa.mp.transpose();
-      }
-    }
+    // a rig pair's motion blocks, summed over its slots (the upper triangle of the 6x6)
+    Matrix6d rig_mm = Matrix6d::Zero();
+    Vector6d rig_me = Vector6d::Zero();
+    Matrix62d rig_mp = Matrix62d::Zero();
     for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
       const TriangleGeometry& t = tris[static_cast<size_t>(ev.slot_tri[k2])];
       if (sum.tri_pixels[k2] == 0) continue;
@@ -119,8 +112,9 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
       dp << acc[9], acc[10], acc[11], acc[12], acc[13], acc[14];
       const double scale = PlaneGeometry::deltaScale(t.m, p.t_prime);
       const Eigen::Matrix3d a = scale * t.dm_dz;  // delta = a * dz
+      const Eigen::Matrix3d atd = ks * a.transpose() * dd;
       if (prob.estimate_heights) {
-        const Eigen::Matrix3d hz = ks * a.transpose() * dd * a;
+        const Eigen::Matrix3d hz = atd * a;
         const Eigen::Vector3d g3 = ks * a.transpose() * de;
         for (int r = 0; r < 3; ++r) {
           gz[t.local[static_cast<size_t>(r)]] += g3[r];
@@ -129,28 +123,59 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
         }
         if (pi >= 0) {
           const Matrix32d hzp = ks * a.transpose() * dp;
-          for (int r = 0; r < 3; ++r) hzg.block<1, 2>(t.local[static_cast<size_t>(r)], pi) += hzp.row(r);
+          for (int r = 0; r < 3; ++r) hzg_rows.block<1, 2>(t.local[static_cast<size_t>(r)], pi) += hzp.row(r);
         }
       }
       if (opt.estimate_motion) {
         Matrix36d hzm;
         if (rig) {
+          // bm = d delta / d xi = scale [-m m^T, -[m]_x] (PlaneGeometry::cameraPlaneMotionJacobian)
           const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(t.m);
-          hzm = ks * a.transpose() * dd * bm;
-          hgg.topLeftCorner<6, 6>() += ks * bm.transpose() * dd * bm;
-          gg.head<6>() += ks * bm.transpose() * de;
-          if (pi >= 0) {
-            const Matrix62d hmp = ks * bm.transpose() * dp;
-            hgg.block<6, 2>(0, pi) += hmp;
-            hgg.block<2, 6>(pi, 0) += hmp.transpose();
+          const Matrix36d dbm = ks * (dd * bm);  // ks dd bm, shared by three blocks
+          hzm.noalias() = a.transpose() * dbm;
+          for (int r = 0; r < 6; ++r) {
+            for (int q = r; q < 6; ++q)
+              rig_mm(r, q) += bm(0, r) * dbm(0, q) + bm(1, r) * dbm(1, q) + bm(2, r) * dbm(2, q);
+            rig_me[r] += ks * (bm(0, r) * de[0] + bm(1, r) * de[1] + bm(2, r) * de[2]);
+            if (pi >= 0) {
+              rig_mp(r, 0) += ks * (bm(0, r) * dp(0, 0) + bm(1, r) * dp(1, 0) + bm(2, r) * dp(2, 0));
+              rig_mp(r, 1) += ks * (bm(0, r) * dp(0, 1) + bm(1, r) * dp(1, 1) + bm(2, r) * dp(2, 1));
+            }
           }
         } else {
           const Eigen::Map<const Eigen::Matrix<double, 3, 6, Eigen::RowMajor>> dm(acc + 15);
           hzm = ks * a.transpose() * dm;
         }
         if (prob.estimate_heights) {
-          for (int r = 0; r < 3; ++r) hzg.block<1, 6>(t.local[static_cast<size_t>(r)], 0) += hzm.row(r);
+          for (int r = 0; r < 3; ++r) hzg_rows.block<1, 6>(t.local[static_cast<size_t>(r)], 0) += hzm.row(r);
         }
+      }
+    }
+    if (rig && opt.estimate_motion) {
+      hgg.topLeftCorner<6, 6>() += rig_mm.selfadjointView<Eigen::Upper>().toDenseMatrix();
+      gg.head<6>() += rig_me;
+      if (pi >= 0) {
+        hgg.block<6, 2>(0, pi) += rig_mp;
+        hgg.block<2, 6>(pi, 0) += rig_mp.transpose();
+      }
+    }
+  }
+  const Eigen::MatrixXd hzg = hzg_rows;
+  // the pairs' own photometric and motion blocks
+  for (size_t j = 0; j < pc.size(); ++j) {
+    const PairContext& p = pc[j];
+    const int pi = p.photo_index;
+    const PairAccumulator& pa = sum.pair[j];
+    if (pi >= 0) {
+      hgg.block<2, 2>(pi, pi) += ks * pa.pp;
+      gg.segment<2>(pi) += ks * pa.pe;
+    }
+    if (p.world) {
+      hgg.topLeftCorner<6, 6>() += ks * pa.mm;
+      gg.head<6>() += ks * pa.me;
+      if (pi >= 0) {
+        hgg.block<6, 2>(0, pi) += ks * pa.mp;
+        hgg.block<2, 6>(pi, 0) += ks * pa.mp.transpose();
       }
     }
   }

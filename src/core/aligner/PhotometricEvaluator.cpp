@@ -107,27 +107,32 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
   } else {
     for (const TriangleRasterizer::Triangle& rt : projected) raster.draw(rt);
   }
-  // slots for the triangles that won pixels
+  // slots for the triangles that won pixels, numbered in raster order
   slot_of_.assign(nt, -1);
   slot_tri_.clear();
+  slot_last_row_.clear();
+  slots_before_row_.assign(static_cast<size_t>(level_.height()) + 1, 0);
   const cv::Mat& labels = raster.labels();
   for (int v = 0; v < level_.height(); ++v) {
+    slots_before_row_[static_cast<size_t>(v)] = static_cast<int>(slot_tri_.size());
     const int* lab = labels.ptr<int>(v);
     for (int u = raster.rowBegin(v); u <= raster.rowEnd(v); ++u) {
       const int ti = lab[u];
-      if (ti >= 0 && slot_of_[static_cast<size_t>(ti)] < 0) {
-        slot_of_[static_cast<size_t>(ti)] = static_cast<int>(slot_tri_.size());
+      if (ti < 0) continue;
+      int& slot = slot_of_[static_cast<size_t>(ti)];
+      if (slot < 0) {
+        slot = static_cast<int>(slot_tri_.size());
         slot_tri_.push_back(ti);
+        slot_last_row_.push_back(v);
+      } else {
+        slot_last_row_[static_cast<size_t>(slot)] = v;
       }
     }
   }
-  raster_u_ = vertex_u_;
-  raster_v_ = vertex_v_;
-  rasterized_ = true;
+  slots_before_row_[static_cast<size_t>(level_.height())] = static_cast<int>(slot_tri_.size());
 }
 
-/// Rasterizes the current surface (or keeps the last rasterization while the vertices have not
-/// moved by more than raster_reuse_px) and accumulates the normal-equation pieces and the cost.
+/// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
 void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
   const SurfaceAlignerOptions& opt = level_.options();
   const AlignmentProblem& prob = level_.problem();
@@ -142,14 +147,12 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
   auto& hom = ws_->homographies;
   TriangleRasterizer& raster = ws_->raster;
   const auto t_raster = std::chrono::steady_clock::now();
-  // The active vertices in the image; how far they moved since the last rasterization.
+  // The active vertices in the image.
   const std::vector<int>& active = level_.active();
   const size_t na = active.size();
   vertex_u_.resize(na);
   vertex_v_.resize(na);
   vertex_ok_.resize(na);
-  bool reuse = rasterized_ && opt.raster_reuse_px > 0.0;
-  const double limit = opt.raster_reuse_px;
   for (size_t a = 0; a < na; ++a) {
     const Eigen::Vector2d xy = prob.grid->position(active[a]);
     const Eigen::Vector3d xc = ctg * Eigen::Vector3d(xy.x(), xy.y(), s.heights[active[a]]);
@@ -157,55 +160,70 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
     vertex_ok_[a] = ok;
     vertex_u_[a] = ok ? rig.fx * xc.x() / xc.z() + rig.cx : 0.0;
     vertex_v_[a] = ok ? rig.fy * xc.y() / xc.z() + rig.cy : 0.0;
-    reuse = reuse && ok && std::abs(vertex_u_[a] - raster_u_[a]) <= limit && std::abs(vertex_v_[a] - raster_v_[a]) <= limit;
   }
-  if (!reuse) {
-    rasterize(s);
-    ++rasterizations_;
-  }
+  rasterize(s);
   ev->slot_of = slot_of_;
   ev->slot_tri = slot_tri_;
   // The planes of the triangles that own pixels, their Jacobians and, per pair, homographies.
+  std::vector<Eigen::Matrix3d> krk(np);
+  std::vector<Eigen::Vector3d> kt(np);
+  for (size_t j = 0; j < np; ++j) {
+    krk[j] = k * pc[j].target_T_reference.linear() * kinv;
+    kt[j] = k * pc[j].target_T_reference.translation();
+  }
   const size_t ns = ev->slot_tri.size();
   hom.resize(np * ns);
   for (size_t k2 = 0; k2 < ns; ++k2) {
     TriangleGeometry& t = tris[static_cast<size_t>(ev->slot_tri[k2])];
     const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
     const Eigen::Vector3d pqc = t.heights_to_plane * z;
-    if (reuse) PlaneGeometry::cameraPlane(ctg, pqc, &t.m);  // (drawn: the camera is not on its plane)
     t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
+    // H_j = K (R_j + t_j m^T) K^-1 = K R_j K^-1 + (K t_j) (K^-T m)^T
+    const Eigen::Vector3d mk = kinv.transpose() * t.m;
     for (size_t j = 0; j < np; ++j) {
-      const Eigen::Matrix3d h = k *
-                                (pc[j].target_T_reference.linear() +
-                                 pc[j].target_T_reference.translation() * t.m.transpose()) *
-                                kinv;
       auto& hh = hom[j * ns + k2];
-      for (int a = 0; a < 9; ++a) hh[static_cast<size_t>(a)] = static_cast<float>(h(a / 3, a % 3));
+      for (int a = 0; a < 9; ++a)
+        hh[static_cast<size_t>(a)] = static_cast<float>(krk[j](a / 3, a % 3) + kt[j][a / 3] * mk[a % 3]);
     }
   }
   raster_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_raster).count();
-  // Rows split into chunks of about equal pixel counts, one per thread.
-  std::vector<int> bounds{0};
+  // The threads take the slots in ranges of about equal pixel counts: thread c the slots first
+  // seen from row split[c] on (raster order), over the rows where they lie. Each writes only its
+  // own slots' sums, so nothing per slot is merged.
+  std::vector<int> split{0};
   {
     long total = 0;
     for (int v = 0; v < height; ++v) total += std::max(0, raster.rowEnd(v) - raster.rowBegin(v) + 1);
     long acc = 0;
-    int next = 1;
-    for (int v = 0; v < height && next < threads; ++v) {
+    for (int v = 0; v < height && static_cast<int>(split.size()) < threads; ++v) {
       acc += std::max(0, raster.rowEnd(v) - raster.rowBegin(v) + 1);
-      if (acc * threads >= total * next) {
-        bounds.push_back(v + 1);
-        ++next;
-      }
+      if (acc * threads >= total * static_cast<long>(split.size())) split.push_back(v + 1);
     }
-    while (static_cast<int>(bounds.size()) <= threads) bounds.push_back(height);
-    bounds.back() = height;
+    while (static_cast<int>(split.size()) < threads) split.push_back(height);
+    split.push_back(height);
   }
-  ev->chunks.resize(static_cast<size_t>(threads));
+  const std::vector<int>& strides = level_.strides();
+  ev->tri.resize(np);
+  for (size_t j = 0; j < np; ++j) ev->tri[j].resize(static_cast<size_t>(strides[j]) * ns);
+  ev->tri_pixels.resize(ns);
+  ev->tri_excluded.resize(ns);
+  ev->tri_textured.resize(ns);
+  ev->parts.resize(static_cast<size_t>(threads));
   auto work = [&](int c) {
-    Chunk& ch = ev->chunks[static_cast<size_t>(c)];
-    ch.reset(level_.strides(), ns);
-    accumulateRows(pc, *ev, bounds[static_cast<size_t>(c)], bounds[static_cast<size_t>(c) + 1], &ch);
+    const int first_row = split[static_cast<size_t>(c)];
+    const int slot_begin = slots_before_row_[static_cast<size_t>(first_row)];
+    const int slot_end = slots_before_row_[static_cast<size_t>(split[static_cast<size_t>(c) + 1])];
+    int last_row = first_row - 1;
+    for (int k2 = slot_begin; k2 < slot_end; ++k2) last_row = std::max(last_row, slot_last_row_[static_cast<size_t>(k2)]);
+    for (size_t j = 0; j < np; ++j) {
+      std::fill(ev->tri[j].begin() + static_cast<std::ptrdiff_t>(strides[j]) * slot_begin,
+                ev->tri[j].begin() + static_cast<std::ptrdiff_t>(strides[j]) * slot_end, 0.0);
+    }
+    for (auto* counts : {&ev->tri_pixels, &ev->tri_excluded, &ev->tri_textured})
+      std::fill(counts->begin() + slot_begin, counts->begin() + slot_end, 0);
+    ThreadPart& part = ev->parts[static_cast<size_t>(c)];
+    part.reset(np);
+    accumulateRows(pc, ev, first_row, last_row + 1, slot_begin, slot_end, &part);
   };
   if (threads > 1) {
     tbb::task_arena arena(threads);
@@ -213,29 +231,25 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
   } else {
     work(0);
   }
-  Chunk& sum = ev->chunks[0];
+  ev->pair = ev->parts[0].pair;
+  ev->abs_residuals = ev->parts[0].abs_residuals;
+  ev->pair_abs_residuals = ev->parts[0].pair_abs_residuals;
   for (int c = 1; c < threads; ++c) {
-    const Chunk& o = ev->chunks[static_cast<size_t>(c)];
+    const ThreadPart& o = ev->parts[static_cast<size_t>(c)];
     for (size_t j = 0; j < np; ++j) {
-      double* dst = sum.tri[j].data();
-      const double* src = o.tri[j].data();
-      const size_t n = sum.tri[j].size();
-      for (size_t i = 0; i < n; ++i) dst[i] += src[i];
-      sum.pair[j].add(o.pair[j]);
-    }
-    for (size_t i = 0; i < ns; ++i) {
-      sum.tri_pixels[i] += o.tri_pixels[i];
-      sum.tri_excluded[i] += o.tri_excluded[i];
-      sum.tri_textured[i] += o.tri_textured[i];
-    }
-    sum.abs_residuals.insert(sum.abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
-    for (size_t j = 0; j < np; ++j) {
-      sum.pair_abs_residuals[j].insert(sum.pair_abs_residuals[j].end(), o.pair_abs_residuals[j].begin(),
+      ev->pair[j].add(o.pair[j]);
+      ev->pair_abs_residuals[j].insert(ev->pair_abs_residuals[j].end(), o.pair_abs_residuals[j].begin(),
                                        o.pair_abs_residuals[j].end());
     }
+    ev->abs_residuals.insert(ev->abs_residuals.end(), o.abs_residuals.begin(), o.abs_residuals.end());
+  }
+  for (auto& pa : ev->pair) {
+    pa.pp(1, 0) = pa.pp(0, 1);
+    for (int r = 0; r < 6; ++r)
+      for (int col = 0; col < r; ++col) pa.mm(r, col) = pa.mm(col, r);
   }
   ev->data_cost = 0.0;
-  for (const auto& pa : sum.pair) ev->data_cost += level_.dataScale() * pa.cost;
+  for (const auto& pa : ev->pair) ev->data_cost += level_.dataScale() * pa.cost;
   const Eigen::VectorXd za = level_.activeHeights(s);
   ev->smoothness_cost = 0.0;
   ev->smooth_residual.resize(level_.stencils().size());
@@ -290,16 +304,16 @@ struct PhotometricEvaluator::RowPixels {
 /// triangle in one row), with x relative to the run's first pixel so that the nearly
 /// rank-deficient 3x3 block of a triangle (its pixels' rays are nearly parallel) keeps its
 /// precision, and are flushed into the double accumulators at the end of each run.
-void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, const Evaluation& ev, int v0, int v1,
-                                          Chunk* ch) const {
+void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, Evaluation* ev, int v0, int v1,
+                                          int slot_begin, int slot_end, ThreadPart* part) const {
   const SurfaceAlignerOptions& opt = level_.options();
   const StereoRig& rig = level_.rig();
   const ImagePyramid::Level* ref = &level_.reference();
   const cv::Mat* excluded = level_.excluded();
   const float gtex2 = level_.texturedGradient2();
   const size_t np = pc.size();
-  const size_t ns = ev.slot_tri.size();
-  const int* slot_of = ev.slot_of.data();
+  const size_t ns = ev->slot_tri.size();
+  const int* slot_of = ev->slot_of.data();
   const TriangleRasterizer& raster = ws_->raster;
   const float dark = static_cast<float>(opt.dark_level_grey);
   const float sat = static_cast<float>(opt.saturated_level_grey);
@@ -321,14 +335,15 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, co
       const int tl = lab[u];
       if (tl < 0) continue;
       const int ti = slot_of[tl];
+      if (ti < slot_begin || ti >= slot_end) continue;  // another thread's
       if (exrow && exrow[u]) {
-        ch->tri_excluded[static_cast<size_t>(ti)]++;
+        ev->tri_excluded[static_cast<size_t>(ti)]++;
         continue;
       }
       const float i0 = i0row[u];
       if (i0 <= dark || i0 >= sat) continue;
-      ch->tri_pixels[static_cast<size_t>(ti)]++;
-      ch->tri_textured[static_cast<size_t>(ti)] += gurow[u] * gurow[u] + gvrow[u] * gvrow[u] >= gtex2;
+      ev->tri_pixels[static_cast<size_t>(ti)]++;
+      ev->tri_textured[static_cast<size_t>(ti)] += gurow[u] * gurow[u] + gvrow[u] * gvrow[u] >= gtex2;
       if (ti != last_slot) {
         px.run_begin[static_cast<size_t>(runs++)] = n;
         last_slot = ti;
@@ -347,23 +362,18 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, co
     px.run_begin[static_cast<size_t>(runs)] = n;
     for (size_t j = 0; j < np; ++j) {
       const PairContext& p = pc[j];
-      dispatchRow(p, j, ns, v, y, px, ch, runs);
+      dispatchRow(p, j, ns, v, y, px, ev, part, runs);
     }
-  }
-  for (auto& pa : ch->pair) {
-    pa.pp(1, 0) = pa.pp(0, 1);
-    for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < r; ++c) pa.mm(r, c) = pa.mm(c, r);
   }
 }
 
 /// One instantiation of pairRow per warp kind, world-fixed or not, row shift or not.
 void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, RowPixels& px,
-                                       Chunk* ch, int runs) const {
+                                       Evaluation* ev, ThreadPart* part, int runs) const {
   auto with = [&](auto kind, auto world) {
-    if (p.row_shift) pairRow<decltype(kind)::value, true>(p, j, ns, v, px, ch);
-    else pairRow<decltype(kind)::value, false>(p, j, ns, v, px, ch);
-    accumulateRuns<decltype(world)::value>(p, j, y, px, runs, ch);
+    if (p.row_shift) pairRow<decltype(kind)::value, true>(p, j, ns, v, px, part);
+    else pairRow<decltype(kind)::value, false>(p, j, ns, v, px, part);
+    accumulateRuns<decltype(world)::value>(p, j, y, px, runs, ev, part);
   };
   using H = std::integral_constant<int, kWarpHorizontal>;
   using A = std::integral_constant<int, kWarpAffine>;
@@ -378,7 +388,8 @@ void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns
 }
 
 template <int kKind, bool kShift>
-void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, int v, RowPixels& px, Chunk* ch) const {
+void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, int v, RowPixels& px,
+                                   ThreadPart* part) const {
   enum : uint8_t { kUsed = 0, kSkipped = 1, kOutside = 2 };
   const SurfaceAlignerOptions& opt = level_.options();
   const StereoRig& rig = level_.rig();
@@ -400,7 +411,7 @@ void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, in
   const std::array<float, 6>& sh = p.shift;
   const cv::Mat* tex = p.target_excluded;
   const uint8_t* rex = p.reference_excluded ? p.reference_excluded->ptr<uint8_t>(v) : nullptr;
-  PairAccumulator& pa = ch->pair[j];
+  PairAccumulator& pa = part->pair[j];
   const int n = px.n;
   const int* uk = px.u.data();
   float* ujk = px.uj.data();
@@ -479,21 +490,21 @@ void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, in
   for (int k = 0, count = 0; k < n; ++k) {
     if (use[k] != kUsed || (++count & 7) != 0) continue;
     const float e = std::abs(i0k[k] - (gain * ijk[k] + bias));
-    ch->abs_residuals.push_back(e);
-    ch->pair_abs_residuals[j].push_back(e);
+    part->abs_residuals.push_back(e);
+    part->pair_abs_residuals[j].push_back(e);
   }
 }
 
 template <bool kWorld>
 void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs,
-                                          Chunk* ch) const {
+                                          Evaluation* ev, ThreadPart* part) const {
   constexpr int kStride = kWorld ? kStrideWorld : kStrideRig;
   const std::vector<TriangleGeometry>& tris = level_.triangles();
   const float tx = static_cast<float>(p.t_prime.x()), ty = static_cast<float>(p.t_prime.y()),
               tz = static_cast<float>(p.t_prime.z());
   const double yd = y;
-  PairAccumulator& pa = ch->pair[j];
-  double* tri_acc = ch->tri[j].data();
+  PairAccumulator& pa = part->pair[j];
+  double* tri_acc = ev->tri[j].data();
   const float* wk = px.w.data();
   const float* wek = px.we.data();
   const float* c0k = px.c0.data();
