@@ -6,12 +6,20 @@
 namespace stereo_ground_dem {
 
 void TriangleRasterizer::reset(int width, int height, int margin) {
-  if (labels_.rows != height || labels_.cols != width) {
+  if (labels_.rows != height || labels_.cols != width || row_begin_.size() != static_cast<size_t>(height)) {
     labels_.create(height, width, CV_32S);
     inv_depth_.create(height, width, CV_32F);
+    labels_.setTo(-1);
+    inv_depth_.setTo(0.0f);
+  } else {
+    // only what the last drawing touched: each row's [first, last] labelled column
+    for (int v = 0; v < height; ++v) {
+      const int b = row_begin_[static_cast<size_t>(v)], e = row_end_[static_cast<size_t>(v)];
+      if (b > e) continue;
+      std::fill(labels_.ptr<int>(v) + b, labels_.ptr<int>(v) + e + 1, -1);
+      std::fill(inv_depth_.ptr<float>(v) + b, inv_depth_.ptr<float>(v) + e + 1, 0.0f);
+    }
   }
-  labels_.setTo(-1);
-  inv_depth_.setTo(0.0f);
   row_begin_.assign(static_cast<size_t>(height), width);
   row_end_.assign(static_cast<size_t>(height), -1);
   margin_ = margin;

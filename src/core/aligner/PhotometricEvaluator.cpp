@@ -173,18 +173,28 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
   }
   const size_t ns = ev->slot_tri.size();
   hom.resize(np * ns);
-  for (size_t k2 = 0; k2 < ns; ++k2) {
-    TriangleGeometry& t = tris[static_cast<size_t>(ev->slot_tri[k2])];
-    const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
-    const Eigen::Vector3d pqc = t.heights_to_plane * z;
-    t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
-    // H_j = K (R_j + t_j m^T) K^-1 = K R_j K^-1 + (K t_j) (K^-T m)^T
-    const Eigen::Vector3d mk = kinv.transpose() * t.m;
-    for (size_t j = 0; j < np; ++j) {
-      auto& hh = hom[j * ns + k2];
-      for (int a = 0; a < 9; ++a)
-        hh[static_cast<size_t>(a)] = static_cast<float>(krk[j](a / 3, a % 3) + kt[j][a / 3] * mk[a % 3]);
+  auto geometry = [&](size_t begin, size_t end) {
+    for (size_t k2 = begin; k2 < end; ++k2) {
+      TriangleGeometry& t = tris[static_cast<size_t>(ev->slot_tri[k2])];
+      const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
+      const Eigen::Vector3d pqc = t.heights_to_plane * z;
+      t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
+      // H_j = K (R_j + t_j m^T) K^-1 = K R_j K^-1 + (K t_j) (K^-T m)^T
+      const Eigen::Vector3d mk = kinv.transpose() * t.m;
+      for (size_t j = 0; j < np; ++j) {
+        auto& hh = hom[j * ns + k2];
+        for (int a = 0; a < 9; ++a)
+          hh[static_cast<size_t>(a)] = static_cast<float>(krk[j](a / 3, a % 3) + kt[j][a / 3] * mk[a % 3]);
+      }
     }
+  };
+  if (threads > 1 && ns > 512) {
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+      tbb::parallel_for(0, threads, [&](int c) { geometry(ns * static_cast<size_t>(c) / static_cast<size_t>(threads), ns * static_cast<size_t>(c + 1) / static_cast<size_t>(threads)); });
+    });
+  } else {
+    geometry(0, ns);
   }
   raster_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_raster).count();
   // The threads take the slots in ranges of about equal pixel counts: thread c the slots first
