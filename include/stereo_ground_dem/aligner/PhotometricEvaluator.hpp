@@ -7,6 +7,8 @@
 /// (Evaluation); then the smoothness and prior costs. Internal to SurfaceAligner.
 
 #include <array>
+#include <memory>
+#include <tbb/task_arena.h>
 #include <vector>
 
 #include "stereo_ground_dem/TriangleRasterizer.hpp"
@@ -47,6 +49,12 @@ class PhotometricEvaluator {
   template <bool kWorld>
   void accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs, Evaluation* ev,
                       ThreadPart* part) const;
+  /// The level's threads, made once per evaluator (an arena per parallel section costs more
+  /// than the slots' geometry it would split).
+  tbb::task_arena& arena() {
+    if (!arena_) arena_ = std::make_unique<tbb::task_arena>(level_.threads());
+    return *arena_;
+  }
 
   /// Rasterizes the surface at state s (the vertices projected in vertex_u_ / vertex_v_) and
   /// assigns slots, in raster order, to the triangles that won pixels.
@@ -54,6 +62,7 @@ class PhotometricEvaluator {
 
   AlignmentLevel& level_;
   EvaluatorWorkspace* ws_;
+  std::unique_ptr<tbb::task_arena> arena_;
   // the active vertices in the reference image at the evaluated state
   std::vector<double> vertex_u_, vertex_v_;
   std::vector<uint8_t> vertex_ok_;  ///< in front of the camera

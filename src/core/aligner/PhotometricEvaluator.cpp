@@ -102,8 +102,7 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
         raster.draw(rt, first, last);
       }
     };
-    tbb::task_arena arena(2);
-    arena.execute([&] { tbb::parallel_for(0, 2, band); });
+    arena().execute([&] { tbb::parallel_for(0, 2, band); });
   } else {
     for (const TriangleRasterizer::Triangle& rt : projected) raster.draw(rt);
   }
@@ -134,7 +133,6 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
 
 /// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
 void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
-  const SurfaceAlignerOptions& opt = level_.options();
   const AlignmentProblem& prob = level_.problem();
   const StereoRig& rig = level_.rig();
   std::vector<TriangleGeometry>& tris = level_.triangles();
@@ -189,8 +187,7 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
     }
   };
   if (threads > 1 && ns > 512) {
-    tbb::task_arena arena(threads);
-    arena.execute([&] {
+    arena().execute([&] {
       tbb::parallel_for(0, threads, [&](int c) { geometry(ns * static_cast<size_t>(c) / static_cast<size_t>(threads), ns * static_cast<size_t>(c + 1) / static_cast<size_t>(threads)); });
     });
   } else {
@@ -236,8 +233,7 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
     accumulateRows(pc, ev, first_row, last_row + 1, slot_begin, slot_end, &part);
   };
   if (threads > 1) {
-    tbb::task_arena arena(threads);
-    arena.execute([&] { tbb::parallel_for(0, threads, work); });
+    arena().execute([&] { tbb::parallel_for(0, threads, work); });
   } else {
     work(0);
   }
@@ -377,24 +373,22 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, Ev
   }
 }
 
-/// One instantiation of pairRow per warp kind, world-fixed or not, row shift or not.
+/// One instantiation of pairRow per warp kind and row shift, then of accumulateRuns world-fixed or not.
 void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns, int v, float y, RowPixels& px,
                                        Evaluation* ev, ThreadPart* part, int runs) const {
-  auto with = [&](auto kind, auto world) {
-    if (p.row_shift) pairRow<decltype(kind)::value, true>(p, j, ns, v, px, part);
-    else pairRow<decltype(kind)::value, false>(p, j, ns, v, px, part);
-    accumulateRuns<decltype(world)::value>(p, j, y, px, runs, ev, part);
-  };
-  using H = std::integral_constant<int, kWarpHorizontal>;
-  using A = std::integral_constant<int, kWarpAffine>;
-  using P = std::integral_constant<int, kWarpProjective>;
-  using W = std::true_type;
-  using F = std::false_type;
   switch (p.kind) {
-    case kWarpHorizontal: p.world ? with(H(), W()) : with(H(), F()); break;
-    case kWarpAffine: p.world ? with(A(), W()) : with(A(), F()); break;
-    case kWarpProjective: p.world ? with(P(), W()) : with(P(), F()); break;
+    case kWarpHorizontal:
+      p.row_shift ? pairRow<kWarpHorizontal, true>(p, j, ns, v, px, part) : pairRow<kWarpHorizontal, false>(p, j, ns, v, px, part);
+      break;
+    case kWarpAffine:
+      p.row_shift ? pairRow<kWarpAffine, true>(p, j, ns, v, px, part) : pairRow<kWarpAffine, false>(p, j, ns, v, px, part);
+      break;
+    case kWarpProjective:
+      p.row_shift ? pairRow<kWarpProjective, true>(p, j, ns, v, px, part)
+                  : pairRow<kWarpProjective, false>(p, j, ns, v, px, part);
+      break;
   }
+  p.world ? accumulateRuns<true>(p, j, y, px, runs, ev, part) : accumulateRuns<false>(p, j, y, px, runs, ev, part);
 }
 
 template <int kKind, bool kShift>
