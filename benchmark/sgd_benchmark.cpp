@@ -7,6 +7,7 @@
 #include <benchmark/benchmark.h>
 
 #include <memory>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/core/utils/logger.hpp>
 
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
@@ -149,6 +150,27 @@ void BM_Traversability(benchmark::State& state) {
   state.SetLabel(std::to_string(sr.grid.rows) + " x " + std::to_string(sr.grid.cols) + " vertices");
 }
 BENCHMARK(BM_Traversability)->Unit(benchmark::kMillisecond);
+
+void BM_SgbmThreeWay(benchmark::State& state) {
+  // The dense stereo this package's DEM replaces, as peers run it: OpenCV StereoSGBM, 3-way, 128
+  // disparities, 5x5 blocks, P1 8*25, P2 32*25 (scripts/compare_sgbm.py), on the same pair, with
+  // as many threads as the estimator (num_threads). A peer pipeline adds its motion estimate.
+  const Sample& s = Sample::get();
+  const int threads_before = cv::getNumThreads();
+  cv::setNumThreads(s.options.estimator.stereo.aligner.num_threads);
+  cv::Mat l8, r8, disparity;
+  s.left[0].convertTo(l8, CV_8U);
+  s.right[0].convertTo(r8, CV_8U);
+  const cv::Ptr<cv::StereoSGBM> sgbm =
+      cv::StereoSGBM::create(0, 128, 5, 8 * 25, 32 * 25, 1, 0, 10, 100, 2, cv::StereoSGBM::MODE_SGBM_3WAY);
+  for (auto _ : state) {
+    sgbm->compute(l8, r8, disparity);
+    benchmark::DoNotOptimize(disparity.data);
+  }
+  cv::setNumThreads(threads_before);
+  state.SetLabel("OpenCV StereoSGBM 3-way, one pair, full resolution");
+}
+BENCHMARK(BM_SgbmThreeWay)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
 
