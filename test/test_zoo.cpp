@@ -35,6 +35,10 @@ struct Limits {
   double median_cm;      ///< |height error| within 20 m, median
   double p95_cm;         ///< and 95th percentile
   double min_coverage;   ///< known / seen vertices within 20 m
+  // The obstacle layer against the scene's footprints (sgd_evaluate, "obstacles"); negative: not checked.
+  double max_free_flagged_pct = -1.0;   ///< free ground marked obstacle
+  double max_ghost_pct = -1.0;          ///< cells a mover left, seen again, still marked
+  double min_static_recall_pct = -1.0;  ///< static footprint cells in view marked
 };
 
 std::ostream& operator<<(std::ostream& os, const Limits& l) { return os << l.name; }
@@ -42,6 +46,7 @@ std::ostream& operator<<(std::ostream& os, const Limits& l) { return os << l.nam
 struct Figures {
   int failed = -1;
   double drift_pct = NAN, rotation_deg = NAN, median_cm = NAN, p95_cm = NAN, coverage = NAN;
+  double free_flagged_pct = NAN, ghost_pct = NAN, static_recall_pct = NAN;
 };
 
 int sh(const std::string& cmd) {
@@ -83,6 +88,12 @@ void readEvaluation(const std::string& out, Figures* f) {
     f->p95_cm = 100.0 * numberAfter(text, "p95_m", w);
     f->coverage = numberAfter(text, "coverage", w);
   }
+  const size_t o = text.find("obstacles: {");
+  if (o != std::string::npos) {
+    f->free_flagged_pct = numberAfter(text, "free_flagged_pct", o);
+    f->ghost_pct = numberAfter(text, "ghost_pct", o);
+    f->static_recall_pct = numberAfter(text, "static_recall_pct", o);
+  }
 }
 
 class Zoo : public ::testing::TestWithParam<Limits> {
@@ -118,6 +129,13 @@ class Zoo : public ::testing::TestWithParam<Limits> {
     EXPECT_LT(f.median_cm, l.median_cm);
     EXPECT_LT(f.p95_cm, l.p95_cm);
     EXPECT_GT(f.coverage, l.min_coverage);
+    if (l.max_free_flagged_pct >= 0.0) {
+      std::printf("[ zoo      ] %-14s obstacle layer: free ground flagged %.2f %%, ghosts %.1f %%, static recall %.1f %%\n",
+                  l.name, f.free_flagged_pct, f.ghost_pct, f.static_recall_pct);
+      EXPECT_LT(f.free_flagged_pct, l.max_free_flagged_pct);
+      EXPECT_LT(f.ghost_pct, l.max_ghost_pct);
+      EXPECT_GT(f.static_recall_pct, l.min_static_recall_pct);
+    }
   }
   fs::path dir_;
 };
@@ -146,8 +164,10 @@ INSTANTIATE_TEST_SUITE_P(
                       Limits{"tight_curve", 40, 0.07, 0.16, 1.3, 3.8, 0.96},        // 0.04 0.096 0.85 2.44 0.983
                       Limits{"ramp", 40, 0.15, 0.30, 0.7, 90.0, 0.90},              // 0.09 0.203 0.43 58.8 0.937
                       Limits{"rolling", 40, 12.0, 10.0, 4.7, 130.0, 0.90},          // 7.68 5.04 2.11 67.3 0.917
-                      Limits{"shadows", 40, 2.6, 1.9, 1.2, 19.0, 0.97},             // 1.35 0.933 0.78 13.2 0.994
-                      Limits{"traffic", 40, 0.13, 0.18, 0.36, 2.5, 0.88}),          // 0.06 0.092 0.25 1.69 0.915
+                      // + obstacle layer: free ground flagged %, ghosts %, static recall % (measured 5.68 22.2 -, 15.2 11.7 99.3;
+                      // the targets of issue 10 are 2 % and no ghosts: docs/results.md, "Obstacles in sequences")
+                      Limits{"shadows", 40, 2.6, 1.9, 1.2, 19.0, 0.97, 8.0, 30.0, -2.0},   // 1.35 0.933 0.78 13.2 0.994
+                      Limits{"traffic", 40, 0.13, 0.18, 0.36, 2.5, 0.88, 20.0, 16.0, 95.0}),  // 0.06 0.092 0.25 1.69 0.915
     [](const ::testing::TestParamInfo<Limits>& i) { return std::string(i.param.name); });
 
 class RealClip : public Zoo {};

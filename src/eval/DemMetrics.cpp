@@ -7,6 +7,79 @@
 namespace stereo_ground_dem {
 
 namespace {
+/// DemMetrics::obs_*: every cell of the obstacle layer with a value, by what the scene had near it.
+void obstacleLayer(const GroundGrid& grid, const cv::Mat& obstacles, const sim::SyntheticScene& scene,
+                   const Eigen::Isometry3d& true_T_est, const std::vector<Eigen::Isometry3d>& c_T_g,
+                   const std::vector<double>& times, double half_fov, DemMetrics* m) {
+  const size_t n = std::min(times.size(), c_T_g.size());
+  if (n == 0) return;
+  const auto& boxes = scene.options().boxes;
+  const int nb = static_cast<int>(boxes.size());
+  auto movingId = [&](int id) { return id >= 1 && id <= nb && boxes[static_cast<size_t>(id - 1)].velocity_xy.norm() > 0.0; };
+  m->obstacle_class = cv::Mat::zeros(grid.rows, grid.cols, CV_8U);
+  constexpr double kNear = 0.5;  // [m]
+  const double probe[5][2] = {{0, 0}, {kNear, 0}, {-kNear, 0}, {0, kNear}, {0, -kNear}};
+  auto inView = [&](Eigen::Vector3d q, size_t from) {
+    q.z() = scene.terrainHeight(q.x(), q.y());
+    for (size_t k = from; k < n; ++k) {
+      const Eigen::Vector3d xc = c_T_g[k] * q;
+      if (xc.z() >= 4.0 && xc.z() <= 30.0 && std::abs(xc.x()) <= xc.z() * half_fov && xc.y() > 0.0) return true;
+    }
+    return false;
+  };
+  for (int r = 0; r < grid.rows; ++r) {
+    for (int c = 0; c < grid.cols; ++c) {
+      const float value = obstacles.at<float>(r, c);
+      {  // recall over the static footprints in view, whatever the layer says
+        const Eigen::Vector3d q = true_T_est * Eigen::Vector3d(grid.xOfCol(c), grid.yOfRow(r), 0.0);
+        const int id = scene.obstacleIdAt(q.x(), q.y(), times[0]);
+        if (id > 0 && !movingId(id) && inView(q, 0)) {
+          ++m->obs_static_in_view;
+          m->obs_static_in_view_marked += std::isfinite(value) && value >= 0.5f;
+        }
+      }
+      if (!std::isfinite(value)) continue;
+      const bool marked = value >= 0.5f;
+      Eigen::Vector3d p = true_T_est * Eigen::Vector3d(grid.xOfCol(c), grid.yOfRow(r), 0.0);
+      bool ever_near = false, near_static = false, near_moving_last = false;
+      int last_moving = -1;  // the last frame a moving footprint was near
+      for (size_t k = 0; k < n; ++k) {
+        bool moving_here = false;
+        for (const auto& d : probe) {
+          const int id = scene.obstacleIdAt(p.x() + d[0], p.y() + d[1], times[k]);
+          if (id <= 0) continue;
+          ever_near = true;
+          if (movingId(id)) moving_here = true;
+          else near_static = true;
+        }
+        if (moving_here) last_moving = static_cast<int>(k);
+        if (k + 1 == n) near_moving_last = moving_here;
+      }
+      uint8_t& cls = m->obstacle_class.at<uint8_t>(r, c);
+      if (!ever_near) {
+        ++m->obs_free_known;
+        m->obs_free_flagged += marked;
+        cls = marked ? 2 : 1;
+        continue;
+      }
+      if (near_static) {
+        if (scene.insideObstacleFootprint(p.x(), p.y(), times[0]) && !movingId(scene.obstacleIdAt(p.x(), p.y(), times[0]))) {
+          ++m->obs_static_known;
+          m->obs_static_marked += marked;
+          cls = marked ? 5 : 6;
+        }
+        continue;
+      }
+      if (last_moving < 0 || near_moving_last) continue;
+      // left by a moving obstacle: seen again by a later frame?
+      if (!inView(p, static_cast<size_t>(last_moving) + 1)) continue;
+      ++m->obs_path_seen;
+      m->obs_path_ghost += marked;
+      cls = marked ? 4 : 3;
+    }
+  }
+}
+
 void finish(std::vector<double>& e, int seen, HeightErrorStats* s) {
   s->count = static_cast<int>(e.size());
   s->coverage = seen > 0 ? static_cast<double>(e.size()) / seen : 0.0;
@@ -23,7 +96,8 @@ void finish(std::vector<double>& e, int seen, HeightErrorStats* s) {
 DemMetrics DemMetrics::compute(const GroundGrid& grid, const cv::Mat& elevation, const cv::Mat& traversability,
                                const Eigen::Isometry3d& est_g_T_c0, const sim::SyntheticScene& scene,
                                const Eigen::Isometry3d& true_g_T_c0, const std::vector<Eigen::Isometry3d>& c0_T_c,
-                               const std::vector<double>& times, const StereoRig& rig, const cv::Mat& true_trav) {
+                               const std::vector<double>& times, const StereoRig& rig, const cv::Mat& true_trav,
+                               const cv::Mat& obstacles) {
   DemMetrics m;
   const Eigen::Isometry3d true_T_est = true_g_T_c0 * est_g_T_c0.inverse();
   std::vector<Eigen::Isometry3d> c_T_g;  // true camera_T_ground per frame
@@ -91,6 +165,7 @@ DemMetrics DemMetrics::compute(const GroundGrid& grid, const cv::Mat& elevation,
   }
   m.within_20m.max_depth_m = 20.0;
   finish(err20, seen20, &m.within_20m);
+  if (!obstacles.empty()) obstacleLayer(grid, obstacles, scene, true_T_est, c_T_g, times, half_fov, &m);
   m.trav_compared = tp + fp + fn + tn;
   m.trav_precision = tp + fp > 0 ? static_cast<double>(tp) / (tp + fp) : 0.0;
   m.trav_recall = tp + fn > 0 ? static_cast<double>(tp) / (tp + fn) : 0.0;

@@ -7,6 +7,8 @@
 // present): DEM height errors by the distance at which vertices were seen, coverage, and
 // traversability precision/recall against the exact terrain. Writes OUT/evaluation.yaml.
 #include <cstdio>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -98,8 +100,9 @@ int main(int argc, char** argv) {
       GroundGrid grid;
       const cv::Mat dem = GeoTiff::read(result + "/dem.tif", &grid);
       const DemMetadata meta = DemMetadata::read(result + "/dem.yaml");
-      cv::Mat trav;
+      cv::Mat trav, obstacles;
       if (exists(result + "/traversability.tif")) trav = GeoTiff::read(result + "/traversability.tif");
+      if (exists(result + "/obstacles.tif")) obstacles = GeoTiff::read(result + "/obstacles.tif");
       const Eigen::Isometry3d true_g_T_c0 = readMatrix16(seq_dir + "/ground_T_camera0.txt");
       std::vector<double> times;
       for (int i = 0; i < seq.size(); ++i) times.push_back(seq.stamp(i));
@@ -117,7 +120,7 @@ int main(int argc, char** argv) {
       const std::vector<Eigen::Isometry3d> poses(seq.groundTruth().begin(),
                                                  seq.groundTruth().begin() + std::min<size_t>(est.size(), seq.groundTruth().size()));
       const DemMetrics dm = DemMetrics::compute(grid, dem, trav, meta.ground_T_camera0, scene, true_g_T_c0, poses,
-                                                times, seq.rig(), true_trav);
+                                                times, seq.rig(), true_trav, obstacles);
       y << "dem:\n  known_vertices: " << dm.known_vertices << "\n  obstacle_vertices: " << dm.obstacle_vertices << "\n  bins:\n";
       std::printf("DEM: %d known vertices (%d inside obstacle footprints, excluded)\n", dm.known_vertices, dm.obstacle_vertices);
       auto line = [&](const HeightErrorStats& s) {
@@ -143,6 +146,28 @@ int main(int argc, char** argv) {
         << ", recall: " << dm.trav_recall << ", accuracy: " << dm.trav_accuracy << "}\n";
       std::printf("traversability (blocked < 0.5): precision %.3f, recall %.3f, accuracy %.3f over %d vertices\n",
                   dm.trav_precision, dm.trav_recall, dm.trav_accuracy, dm.trav_compared);
+      if (!obstacles.empty()) {
+        // obstacle_check.png: the classes on the grid (rows along y: flipped so that +y is up)
+        static const cv::Vec3b kColour[7] = {{255, 255, 255}, {200, 200, 200}, {0, 0, 230}, {230, 200, 0},
+                                             {0, 140, 255}, {0, 170, 0}, {200, 0, 0}};
+        cv::Mat pic(grid.rows, grid.cols, CV_8UC3);
+        for (int r = 0; r < grid.rows; ++r)
+          for (int c = 0; c < grid.cols; ++c)
+            pic.at<cv::Vec3b>(grid.rows - 1 - r, c) = kColour[dm.obstacle_class.at<uint8_t>(r, c)];
+        cv::resize(pic, pic, cv::Size(), 4, 4, cv::INTER_NEAREST);
+        cv::imwrite(result + "/obstacle_check.png", pic);
+        auto pct = [](int a, int b) { return b > 0 ? 100.0 * a / b : 0.0; };
+        y << "  obstacles: {free_cells: " << dm.obs_free_known << ", free_flagged_pct: " << pct(dm.obs_free_flagged, dm.obs_free_known)
+          << ", left_by_movers_seen_again: " << dm.obs_path_seen << ", ghost_pct: " << pct(dm.obs_path_ghost, dm.obs_path_seen)
+          << ", static_cells: " << dm.obs_static_known << ", static_marked_pct: " << pct(dm.obs_static_marked, dm.obs_static_known)
+          << ", static_in_view: " << dm.obs_static_in_view
+          << ", static_recall_pct: " << pct(dm.obs_static_in_view_marked, dm.obs_static_in_view) << "}\n";
+        std::printf("obstacle layer: free ground flagged %.2f %% of %d cells; ghosts %.1f %% of %d cells movers left and a later "
+                    "frame saw; static footprints: %.1f %% of the %d cells with a value marked, %.1f %% of the %d in view\n",
+                    pct(dm.obs_free_flagged, dm.obs_free_known), dm.obs_free_known, pct(dm.obs_path_ghost, dm.obs_path_seen),
+                    dm.obs_path_seen, pct(dm.obs_static_marked, dm.obs_static_known), dm.obs_static_known,
+                    pct(dm.obs_static_in_view_marked, dm.obs_static_in_view), dm.obs_static_in_view);
+      }
     }
     std::ofstream(report) << y.str();
     std::printf("wrote %s\n", report.c_str());

@@ -36,6 +36,20 @@ struct DemMetrics {
   double trav_precision = 0.0;  ///< of the blocked class
   double trav_recall = 0.0;
   double trav_accuracy = 0.0;
+  // The obstacle layer (obstacles.tif: >= 0.5 marked) against the scene's footprints at the
+  // processed frames' times; "near" a footprint = within 0.5 m of it (the mask's dilation).
+  int obs_free_known = 0;     ///< cells with a value that no footprint came near, ever
+  int obs_free_flagged = 0;   ///< ... of them marked (false alarms on free ground)
+  int obs_path_seen = 0;      ///< cells a moving obstacle came near and left, then seen (4-30 m ahead, in view) by a later frame
+  int obs_path_ghost = 0;     ///< ... of them still marked at the end (ghosts)
+  int obs_static_known = 0;   ///< cells with a value inside a static footprint
+  int obs_static_marked = 0;  ///< ... of them marked
+  int obs_static_in_view = 0;         ///< cells inside a static footprint that a frame had in view (4-30 m)
+  int obs_static_in_view_marked = 0;  ///< ... of them marked (recall: the rest unknown or ground)
+  /// Per cell of the obstacle layer, which of the above it is (CV_8U): 0 no value or none of them,
+  /// 1 free ground unmarked, 2 free ground marked, 3 left by a mover and cleared, 4 a ghost,
+  /// 5 static footprint marked, 6 static footprint unmarked.
+  cv::Mat obstacle_class;
   cv::Mat signed_error;  ///< per vertex of the estimated grid: estimate - truth [m], NaN unknown/obstacle
 
   /// `camera0_T_camera` are the true poses of the frames (poses.txt), `times_s` their stamps.
@@ -43,7 +57,8 @@ struct DemMetrics {
                             const Eigen::Isometry3d& est_ground_T_camera0, const sim::SyntheticScene& scene,
                             const Eigen::Isometry3d& true_ground_T_camera0,
                             const std::vector<Eigen::Isometry3d>& camera0_T_camera, const std::vector<double>& times_s,
-                            const StereoRig& rig, const cv::Mat& true_traversability = cv::Mat());
+                            const StereoRig& rig, const cv::Mat& true_traversability = cv::Mat(),
+                            const cv::Mat& obstacles = cv::Mat());
 };
 
 }  // namespace stereo_ground_dem
