@@ -29,14 +29,16 @@ odometry published after the warning) and bag loop.
 
     source .catkin_ws/devel/setup.bash
     scripts/ros_soak.py --frames 200                 # smoke test, ~2 min (+ rendering on the first run)
-    scripts/ros_soak.py --json /tmp/soak.json        # 2,000 frames, ~12 min (+ ~6-10 min rendering the
+    scripts/ros_soak.py --json /tmp/soak.json        # 2,000 frames, ~12 min (+ ~4-10 min rendering the
                                                      # first time; the bag is 1.8 GB)
 
 Exit status 0 when the node processed --frames frames with no failed or skipped frame and the
 highest resident sample from frame 200 on was at most --max-growth-percent (10 %) above the one at
-frame 200 (measured over 2,000 frames: the samples from frame 200 on spread over 134.5-143.4 MB, 6 %,
-as the allocator keeps and returns memory; 10 % = 14 MB of ~140 MB is above that noise and still
-catches a leak of 8 KB per frame over 1,800 frames); 1 otherwise;
+frame 200 (measured over 2,000 frames on 2026-12-02, with the node's periodic release of free heap,
+`~release_memory_every_frames`: the samples from frame 201 on spread over 146.1-152.8 MB, 4.6 %, as
+the allocator keeps and returns memory; 10 % = 15 MB of ~150 MB is above that noise and still
+catches a leak of 8 KB per frame over 1,800 frames; without the release the same run rose 12.6 %,
+docs/results.md section 4); 1 otherwise;
 2 when the sequence or the bag could not be made.
 """
 import argparse

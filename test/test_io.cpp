@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
@@ -104,35 +105,14 @@ std::string thrownMessage(F f) {
 }
 
 // ------------------------------------------------------------------------------- AllocatorTuning
-/// Page faults of 9 more passes of a frame-like allocation pattern (34 MB in six blocks of 0.3-9
-/// MB, written, then freed) after a first pass, in a forked child with or without the tuning; -1 if
-/// the child failed.
-long repeatedPassFaults(bool tuned) {
+/// Runs `body` in a forked child and returns what it returned; -1 if the child failed.
+long inChild(const std::function<long()>& body) {
   int fds[2];
   if (pipe(fds) != 0) return -1;
   const pid_t pid = fork();
   if (pid == 0) {
     close(fds[0]);
-    long result = -1;
-    if (!tuned || sgd::AllocatorTuning::apply()) {
-      auto pass = [] {
-        std::vector<void*> blocks;
-        for (size_t bytes : {size_t{300} << 10, size_t{2} << 20, size_t{5} << 20, size_t{9} << 20, size_t{9} << 20,
-                             size_t{9} << 20}) {
-          void* p = std::malloc(bytes);
-          if (p == nullptr) std::_Exit(1);
-          std::memset(p, 1, bytes);
-          blocks.push_back(p);
-        }
-        for (void* p : blocks) std::free(p);
-      };
-      pass();
-      rusage before{}, after{};
-      getrusage(RUSAGE_SELF, &before);
-      for (int i = 0; i < 9; ++i) pass();
-      getrusage(RUSAGE_SELF, &after);
-      result = after.ru_minflt - before.ru_minflt;
-    }
+    const long result = body();
     const ssize_t written = write(fds[1], &result, sizeof(result));
     std::_Exit(written == static_cast<ssize_t>(sizeof(result)) ? 0 : 1);
   }
@@ -142,6 +122,63 @@ long repeatedPassFaults(bool tuned) {
   close(fds[0]);
   if (pid > 0) waitpid(pid, nullptr, 0);
   return result;
+}
+
+/// Page faults of 9 more passes of a frame-like allocation pattern (34 MB in six blocks of 0.3-9
+/// MB, written, then freed) after a first pass, in a forked child with or without the tuning; -1 if
+/// the child failed.
+long repeatedPassFaults(bool tuned) {
+  return inChild([tuned]() -> long {
+    if (tuned && !sgd::AllocatorTuning::apply()) return -1;
+    auto pass = [] {
+      std::vector<void*> blocks;
+      for (size_t bytes : {size_t{300} << 10, size_t{2} << 20, size_t{5} << 20, size_t{9} << 20, size_t{9} << 20,
+                           size_t{9} << 20}) {
+        void* p = std::malloc(bytes);
+        if (p == nullptr) std::_Exit(1);
+        std::memset(p, 1, bytes);
+        blocks.push_back(p);
+      }
+      for (void* p : blocks) std::free(p);
+    };
+    pass();
+    rusage before{}, after{};
+    getrusage(RUSAGE_SELF, &before);
+    for (int i = 0; i < 9; ++i) pass();
+    getrusage(RUSAGE_SELF, &after);
+    return after.ru_minflt - before.ru_minflt;
+  });
+}
+
+/// Resident pages of this process (/proc/self/statm); -1 if unreadable.
+long residentPages() {
+  std::ifstream in("/proc/self/statm");
+  long size = 0, resident = -1;
+  in >> size >> resident;
+  return in ? resident : -1;
+}
+
+/// Resident KiB given back by releaseFreeMemory() in a tuned child after 32 MiB of 16 KiB blocks
+/// were written and freed below a block still in use (so the heap top cannot shrink); -1 on failure.
+long releasedKib() {
+  return inChild([]() -> long {
+    if (!sgd::AllocatorTuning::apply()) return -1;
+    std::vector<void*> blocks;
+    for (int i = 0; i < 2048; ++i) {
+      void* p = std::malloc(16 << 10);
+      if (p == nullptr) std::_Exit(1);
+      std::memset(p, 1, 16 << 10);
+      blocks.push_back(p);
+    }
+    void* pin = std::malloc(64);  // above them: the free blocks are not the heap top
+    for (void* p : blocks) std::free(p);
+    const long before = residentPages();
+    sgd::AllocatorTuning::releaseFreeMemory();
+    const long after = residentPages();
+    std::free(pin);
+    if (before < 0 || after < 0) return -1;
+    return (before - after) * (sysconf(_SC_PAGESIZE) / 1024);
+  });
 }
 
 }  // namespace
@@ -160,6 +197,18 @@ TEST(AllocatorTuning, FreedFrameBuffersAreReusedWithoutPageFaults) {
   // 9 passes x 34 MB = 78,000 pages of 4 KiB; the tuned allocator keeps them mapped.
   EXPECT_GT(untuned, 40000);
   EXPECT_LT(tuned, 500);
+}
+
+// The free memory a tuned allocator keeps goes back to the kernel on request (the nodelet's
+// ~release_memory_every_frames). Measured: 32,716 KiB of the 32,768 freed.
+TEST(AllocatorTuning, ReleaseFreeMemoryReturnsFreedBlocksBelowTheHeapTop) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer replaces the allocator";
+#endif
+  const long kib = releasedKib();
+  if (kib == -1 && !sgd::AllocatorTuning::releaseFreeMemory()) GTEST_SKIP() << "not glibc";
+  std::printf("resident KiB returned: %ld\n", kib);
+  EXPECT_GT(kib, 28 * 1024);
 }
 
 // ----------------------------------------------------------------------------------- NumberText

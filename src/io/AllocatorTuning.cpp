@@ -19,4 +19,13 @@ bool AllocatorTuning::apply() {
 #endif
 }
 
+bool AllocatorTuning::releaseFreeMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+  return true;
+#else
+  return false;
+#endif
+}
+
 }  // namespace stereo_ground_dem

@@ -171,6 +171,7 @@ void DemNodelet::onInit() {
   publisher_ = std::make_unique<DemPublisher>(options_, pipeline_.traversability, logger);
   worker_ = std::make_unique<DemWorker>(*publisher_, *diagnostics_, pipeline_.estimator, logger, pipeline_.ortho,
                                        pipeline_.residual, pipeline_.attitude);
+  worker_->setMemoryRelease(options_.release_memory_every_frames);
   services_ = std::make_unique<DemServices>(*worker_, options_, pipeline_.traversability, getName());
 
   it_ = std::make_shared<image_transport::ImageTransport>(nh);

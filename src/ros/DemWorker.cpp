@@ -5,6 +5,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "stereo_ground_dem/io/AllocatorTuning.hpp"
 #include "stereo_ground_dem/io/MapStateFile.hpp"
 
 namespace stereo_ground_dem {
@@ -189,6 +190,12 @@ void DemWorker::run() {
     if (t == LatestFrameSlot<StereoFrame>::Taken::kItem) {
       process(frame);
       frame = StereoFrame();  // release the image messages
+      if (release_every_frames_ > 0 && ++processed_since_release_ >= release_every_frames_) {
+        processed_since_release_ = 0;
+        const ros::WallTime t0 = ros::WallTime::now();
+        AllocatorTuning::releaseFreeMemory();
+        ROS_DEBUG_NAMED(logger_, "free memory returned to the kernel in %.1f ms", (ros::WallTime::now() - t0).toSec() * 1e3);
+      }
     }
   }
 }

@@ -39,6 +39,10 @@ class DemWorker {
             const GroundAttitudeOptions& attitude = GroundAttitudeOptions());
   ~DemWorker();  ///< stop()
 
+  /// Every `every_frames` processed frames (0: never), hand the allocator's free memory back to
+  /// the kernel (AllocatorTuning::releaseFreeMemory). Call before start().
+  void setMemoryRelease(int every_frames) { release_every_frames_ = every_frames; }
+
   void start();
   /// Closes the slot and joins the thread (a frame being processed is finished first).
   void stop();
@@ -105,6 +109,8 @@ class DemWorker {
   void restartLayers(const IncrementalEstimatorOptions& options, double resolution_m);
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
+  int release_every_frames_ = 0;
+  long processed_since_release_ = 0;
   double last_processed_stamp_s_ = -1.0;
 };
 
