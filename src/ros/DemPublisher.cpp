@@ -205,7 +205,8 @@ void DemPublisher::publishLayers(const DemLayers& d, const std_msgs::Header& hea
                                                       options_.occupancy_min_certainty));
   }
   if (mesh_pub && mesh_pub->getNumSubscribers() > 0) {
-    mesh_pub->publish(HeightMeshBuilder::build(d.grid, *d.find("elevation"), header, options_.mesh, d.find("intensity")));
+    mesh_pub->publish(HeightMeshBuilder::build(d.grid, *d.find("elevation"), header, options_.mesh, d.find("intensity"),
+                                              d.find("residual")));
   }
 }
 

@@ -42,13 +42,18 @@ std_msgs::ColorRGBA HeightMeshBuilder::color(double u, float alpha) {
 
 visualization_msgs::Marker HeightMeshBuilder::build(const GroundGrid& grid, const cv::Mat& elevation,
                                                     const std_msgs::Header& header,
-                                                    const HeightMeshOptions& options, const cv::Mat* intensity) {
+                                                    const HeightMeshOptions& options, const cv::Mat* intensity,
+                                                    const cv::Mat* residual) {
   if (elevation.type() != CV_32F || elevation.rows != grid.rows || elevation.cols != grid.cols) {
     throw std::invalid_argument("elevation layer does not match the grid");
   }
   const bool grey = options.color_by_intensity && intensity && !intensity->empty();
   if (grey && (intensity->type() != CV_32F || intensity->size() != elevation.size())) {
     throw std::invalid_argument("intensity layer does not match the grid");
+  }
+  const bool misfit = !grey && options.color_by_residual && residual && !residual->empty();
+  if (misfit && (residual->type() != CV_32F || residual->size() != elevation.size())) {
+    throw std::invalid_argument("residual layer does not match the grid");
   }
   visualization_msgs::Marker m;
   m.header = header;
@@ -95,7 +100,20 @@ visualization_msgs::Marker HeightMeshBuilder::build(const GroundGrid& grid, cons
     p.z = z(r, c);
     m.points.push_back(p);
     const float g = grey ? intensity->at<float>(r * s, c * s) : std::numeric_limits<float>::quiet_NaN();
-    if (std::isfinite(g)) {
+    if (misfit) {
+      const float e = residual->at<float>(r * s, c * s);
+      std_msgs::ColorRGBA k;
+      k.a = options.alpha;
+      if (std::isfinite(e)) {
+        const float u = std::min(1.0f, std::max(0.0f, static_cast<float>(e / options.residual_max_grey)));
+        k.r = std::min(1.0f, 2.0f * u);           // green -> yellow -> red
+        k.g = std::min(1.0f, 2.0f * (1.0f - u));
+        k.b = 0.0f;
+      } else {
+        k.r = k.g = k.b = 0.5f;
+      }
+      m.colors.push_back(k);
+    } else if (std::isfinite(g)) {
       std_msgs::ColorRGBA k;
       k.r = k.g = k.b = std::min(1.0f, std::max(0.0f, g / 255.0f));
       k.a = options.alpha;

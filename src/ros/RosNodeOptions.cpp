@@ -34,9 +34,10 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("global_map_rate_hz", o.global_map_rate_hz, o.global_map_rate_hz);
   pnh.param("global_map_max_cells", o.global_map_max_cells, o.global_map_max_cells);
   pnh.param("mesh_max_triangles", o.mesh.max_triangles, o.mesh.max_triangles);
-  std::string mesh_colors = o.mesh.color_by_intensity ? "intensity" : "height";
+  std::string mesh_colors = o.mesh.color_by_intensity ? "intensity" : o.mesh.color_by_residual ? "residual" : "height";
   pnh.param("mesh_colors", mesh_colors, mesh_colors);
   o.mesh.color_by_intensity = mesh_colors == "intensity";
+  o.mesh.color_by_residual = mesh_colors == "residual";
   pnh.param("occupancy_unknown_below", o.occupancy_unknown_below, o.occupancy_unknown_below);
   pnh.param("occupancy_min_certainty", o.occupancy_min_certainty, o.occupancy_min_certainty);
   pnh.param("path_max_poses", o.path_max_poses, o.path_max_poses);
@@ -58,8 +59,8 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   if (!(o.global_map_rate_hz >= 0.0)) bad.push_back("~global_map_rate_hz must be >= 0");
   if (o.global_map_max_cells < 4) bad.push_back("~global_map_max_cells must be >= 4");
   if (o.mesh.max_triangles < 2) bad.push_back("~mesh_max_triangles must be >= 2");
-  if (mesh_colors != "height" && mesh_colors != "intensity") {
-    bad.push_back("~mesh_colors must be 'height' or 'intensity', got '" + mesh_colors + "'");
+  if (mesh_colors != "height" && mesh_colors != "intensity" && mesh_colors != "residual") {
+    bad.push_back("~mesh_colors must be 'height', 'intensity' or 'residual', got '" + mesh_colors + "'");
   }
   if (o.path_max_poses < 1) bad.push_back("~path_max_poses must be >= 1");
   if (!(o.occupancy_min_certainty >= 0.0 && o.occupancy_min_certainty <= 1.0)) {

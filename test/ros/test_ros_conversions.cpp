@@ -177,6 +177,48 @@ TEST(HeightMeshBuilder, GreyFromTheIntensityLayer) {
   EXPECT_THROW(HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, &wrong), std::invalid_argument);
 }
 
+// ~mesh_colors: residual: green at 0, yellow at half of residual_max_grey, red at and above it,
+// mid-grey where unknown; a residual layer of another size is refused.
+TEST(HeightMeshBuilder, ResidualColoursGreenToRed) {
+  const GroundGrid g = smallGrid();
+  cv::Mat e(g.rows, g.cols, CV_32F, cv::Scalar(0.1f));
+  cv::Mat res(g.rows, g.cols, CV_32F, cv::Scalar(10.0f));  // half of 20: yellow
+  res.at<float>(0, 0) = kNaN;
+  res.at<float>(g.rows - 1, g.cols - 1) = 45.0f;  // beyond the maximum: red
+  res.at<float>(0, g.cols - 1) = 0.0f;            // green
+  HeightMeshOptions opt;
+  opt.color_by_residual = true;
+  const visualization_msgs::Marker m = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, nullptr, &res);
+  ASSERT_EQ(m.colors.size(), m.points.size());
+  int seen[4] = {0, 0, 0, 0};  // unknown, red, green, yellow
+  for (size_t i = 0; i < m.points.size(); ++i) {
+    const auto& p = m.points[i];
+    const auto& k = m.colors[i];
+    if (p.x == g.x0() && p.y == g.y0()) {
+      EXPECT_FLOAT_EQ(k.r, 0.5f);
+      EXPECT_FLOAT_EQ(k.g, 0.5f);
+      EXPECT_FLOAT_EQ(k.b, 0.5f);
+      ++seen[0];
+    } else if (p.x == g.xOfCol(g.cols - 1) && p.y == g.yOfRow(g.rows - 1)) {
+      EXPECT_FLOAT_EQ(k.r, 1.0f);
+      EXPECT_FLOAT_EQ(k.g, 0.0f);
+      ++seen[1];
+    } else if (p.x == g.xOfCol(g.cols - 1) && p.y == g.y0()) {
+      EXPECT_FLOAT_EQ(k.r, 0.0f);
+      EXPECT_FLOAT_EQ(k.g, 1.0f);
+      ++seen[2];
+    } else {
+      EXPECT_FLOAT_EQ(k.r, 1.0f);
+      EXPECT_FLOAT_EQ(k.g, 1.0f);
+      EXPECT_FLOAT_EQ(k.b, 0.0f);
+      ++seen[3];
+    }
+  }
+  for (int n : seen) EXPECT_GT(n, 0);
+  const cv::Mat wrong(2, 2, CV_32F, cv::Scalar(1.0f));
+  EXPECT_THROW(HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, nullptr, &wrong), std::invalid_argument);
+}
+
 TEST(StereoInputValidator, CameraInfoAndEncodings) {
   StereoInputValidator v;
   const auto l = info(500, 0), r = info(500, -500 * 0.54);
