@@ -357,10 +357,11 @@ TEST(IncrementalEstimator, AMapContinuedFromItsSavedStateEqualsOneRun) {
 TEST(IncrementalEstimator, DroppedFramesCostLittle) {
   // A camera faster than the node: only every 2nd, 3rd or 4th frame arrives (stamps true, so the
   // prediction scales with the gap). Position error at frame 24 (24 m) against the full-rate run;
-  // issue 11 asks for at most 1.5x the full-rate drift: NOT met beyond every 2nd frame on this
-  // rendered drive (bump scene), measured (this code): full rate 1.28 cm, every 2nd 2.43 cm, 3rd
-  // 7.36 cm, 4th 30.2 cm (with prealign_refine_iterations 8: 1.28, 1.08, 2.26, 9.41 cm). On KITTI
-  // 06 every 2nd / 3rd frame: 1.21 / 1.06 % end drift against 1.06 % at full rate.
+  // issue 11 asks for at most 1.5x the full-rate drift: met for every 2nd frame, NOT for every
+  // 3rd (1.7x) and 4th on this rendered drive (bump scene), measured (this code, with the default
+  // prealign_refine_iterations 8): full rate 1.24 cm, every 2nd 1.18 cm, 3rd 2.16 cm, 4th 9.50 cm
+  // (without the refinement: 1.28, 2.43, 7.36, 30.2 cm). On KITTI 06 every 2nd / 3rd frame: 1.21 /
+  // 1.06 % end drift against 1.06 % at full rate (before the refinement was the default).
   const int n = 25;
   const auto seq = makeSequence(sim::SceneKind::kBumpAndCurb, n, false);
   std::vector<sim::RenderedPair> frames;
@@ -379,7 +380,7 @@ TEST(IncrementalEstimator, DroppedFramesCostLittle) {
   const double full = endError(1);
   std::printf("position error at 24 m: full rate %.2f cm", 100 * full);
   EXPECT_LT(full, 0.02);
-  const double limit_m[5] = {0.0, 0.0, 0.04, 0.11, 0.45};  // under twice the measured figures
+  const double limit_m[5] = {0.0, 0.0, 0.023, 0.042, 0.19};  // under twice the measured figures
   for (int every : {2, 3, 4}) {
     const double e = endError(every);
     std::printf(", every %d: %.2f cm", every, 100 * e);

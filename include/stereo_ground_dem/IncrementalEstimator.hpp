@@ -48,7 +48,7 @@ struct IncrementalEstimatorOptions {
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
-  int prealign_refine_iterations = 0;     ///< then at the next finer level when the motion surprised (0: never)
+  int prealign_refine_iterations = 8;     ///< then at the next finer level when the motion surprised (0: never)
   /// With a velocity, the rotation and scale hypotheses (not the prediction, the straight step or
   /// the ground-anchored start) are pre-aligned with this many iterations, and the one that wins
   /// gets the rest of prealign_iterations (0 or >= prealign_iterations: all get all). On hard

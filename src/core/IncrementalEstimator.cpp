@@ -716,13 +716,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       if (std::isfinite(continued)) best = continued;
     }
     res.prealign_cost = best;
-    // Optionally (prealign_refine_iterations, off by default), when the motion was not what the
-    // constant velocity predicted (another start won, no velocity was known, or frames were
-    // dropped), the chosen start is refined one pyramid level finer: the coarse level gives the
-    // wide basin that abrupt attitude changes need, the finer one the precision before the joint
-    // levels. Measured with 8 iterations: the bouncing zoo scene 1.81 -> 0.39 % drift and 0.46 ->
-    // 0.07 deg, every 3rd / 4th frame of a rendered drive 7.4 -> 2.3 cm / 30 -> 9.4 cm; but on
-    // KITTI 06 one frame (8, parked cars, before the obstacle test) lands 32 cm long: 1.06 -> 1.42 %.
+    // When the motion was not what the constant velocity predicted (another start won, no
+    // velocity was known, or frames were dropped), the chosen start is refined one pyramid level
+    // finer (prealign_refine_iterations, 8; 0: off): the coarse level gives the wide basin that
+    // abrupt attitude changes need, the finer one the precision before the joint levels. Measured
+    // with 8 iterations: the bouncing zoo scene 1.81 -> 0.39 % drift and 0.46 -> 0.07 deg, every
+    // 3rd / 4th frame of a rendered drive 7.4 -> 2.3 cm / 30 -> 9.4 cm. (On 2026-12-01 it made one
+    // KITTI 06 frame land 32 cm long, 1.06 -> 1.42 %; with the tracking of 2026-12-02, 1.05 -> 1.01 %.)
     const bool surprising = chosen > 0 || !predictor_.velocityKnown() || dt > 1.5 * options_.nominal_frame_period_s;
     if (std::isfinite(best) && surprising && options_.prealign_refine_iterations > 0 && prob.level > 0) {
       continueChosen(options_.prealign_refine_iterations, prob.level - 1);
