@@ -47,11 +47,11 @@ visualization_msgs::Marker HeightMeshBuilder::build(const GroundGrid& grid, cons
   if (elevation.type() != CV_32F || elevation.rows != grid.rows || elevation.cols != grid.cols) {
     throw std::invalid_argument("elevation layer does not match the grid");
   }
-  const bool grey = options.color_by_intensity && intensity && !intensity->empty();
+  const bool grey = options.colors == MeshColors::kIntensity && intensity && !intensity->empty();
   if (grey && (intensity->type() != CV_32F || intensity->size() != elevation.size())) {
     throw std::invalid_argument("intensity layer does not match the grid");
   }
-  const bool misfit = !grey && options.color_by_residual && residual && !residual->empty();
+  const bool misfit = options.colors == MeshColors::kResidual && residual && !residual->empty();
   if (misfit && (residual->type() != CV_32F || residual->size() != elevation.size())) {
     throw std::invalid_argument("residual layer does not match the grid");
   }

@@ -34,10 +34,10 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("global_map_rate_hz", o.global_map_rate_hz, o.global_map_rate_hz);
   pnh.param("global_map_max_cells", o.global_map_max_cells, o.global_map_max_cells);
   pnh.param("mesh_max_triangles", o.mesh.max_triangles, o.mesh.max_triangles);
-  std::string mesh_colors = o.mesh.color_by_intensity ? "intensity" : o.mesh.color_by_residual ? "residual" : "height";
+  std::string mesh_colors = "height";
   pnh.param("mesh_colors", mesh_colors, mesh_colors);
-  o.mesh.color_by_intensity = mesh_colors == "intensity";
-  o.mesh.color_by_residual = mesh_colors == "residual";
+  if (mesh_colors == "intensity") o.mesh.colors = MeshColors::kIntensity;
+  if (mesh_colors == "residual") o.mesh.colors = MeshColors::kResidual;
   pnh.param("occupancy_unknown_below", o.occupancy_unknown_below, o.occupancy_unknown_below);
   pnh.param("occupancy_min_certainty", o.occupancy_min_certainty, o.occupancy_min_certainty);
   pnh.param("path_max_poses", o.path_max_poses, o.path_max_poses);

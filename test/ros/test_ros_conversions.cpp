@@ -157,7 +157,7 @@ TEST(HeightMeshBuilder, GreyFromTheIntensityLayer) {
   in.at<float>(0, 0) = kNaN;  // unknown grey: the height colour
   HeightMeshOptions opt;
   const visualization_msgs::Marker heights = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, &in);
-  opt.color_by_intensity = true;
+  opt.colors = MeshColors::kIntensity;
   const visualization_msgs::Marker grey = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, &in);
   ASSERT_EQ(grey.colors.size(), heights.colors.size());
   int grey_vertices = 0;
@@ -187,7 +187,7 @@ TEST(HeightMeshBuilder, ResidualColoursGreenToRed) {
   res.at<float>(g.rows - 1, g.cols - 1) = 45.0f;  // beyond the maximum: red
   res.at<float>(0, g.cols - 1) = 0.0f;            // green
   HeightMeshOptions opt;
-  opt.color_by_residual = true;
+  opt.colors = MeshColors::kResidual;
   const visualization_msgs::Marker m = HeightMeshBuilder::build(g, e, std_msgs::Header(), opt, nullptr, &res);
   ASSERT_EQ(m.colors.size(), m.points.size());
   int seen[4] = {0, 0, 0, 0};  // unknown, red, green, yellow

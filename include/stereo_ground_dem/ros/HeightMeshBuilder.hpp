@@ -7,9 +7,9 @@
 ///    the smallest integer stride s (every s-th vertex along rows and columns) that fits.
 ///  - Colours: a perceptually ordered map (dark blue, low .. yellow, high) over [color_min_m,
 ///    color_max_m]; NaN bounds mean "automatic": the 2nd and 98th percentiles of the known heights.
-///    With color_by_intensity and an intensity layer (the ortho-texture's grey per cell), the mesh
+///    With colors kIntensity and an intensity layer (the ortho-texture's grey per cell), the mesh
 ///    is drawn in the ground's own grey instead (height colours where the intensity is unknown).
-///    With color_by_residual and the photometric-residual layer (grey levels per cell), the mesh
+///    With kResidual and the photometric-residual layer (grey levels per cell), the mesh
 ///    shows where the surface model does not explain the images: green at 0, yellow at half of
 ///    residual_max_grey, red at and above it; mid-grey where the residual is unknown.
 
@@ -25,13 +25,15 @@
 
 namespace stereo_ground_dem {
 
+/// What the mesh's vertex colours show (~mesh_colors: height, intensity, residual).
+enum class MeshColors { kHeight, kIntensity, kResidual };
+
 struct HeightMeshOptions {
   int max_triangles = 60000;  ///< upper bound on the triangles of one marker
   double color_min_m = std::numeric_limits<double>::quiet_NaN();  ///< height shown darkest [m]; NaN: auto
   double color_max_m = std::numeric_limits<double>::quiet_NaN();  ///< height shown brightest [m]; NaN: auto
   float alpha = 1.0f;         ///< opacity [0..1]
-  bool color_by_intensity = false;  ///< grey from the intensity layer (~mesh_colors: intensity)
-  bool color_by_residual = false;   ///< green..red from the residual layer (~mesh_colors: residual)
+  MeshColors colors = MeshColors::kHeight;
   double residual_max_grey = 20.0;  ///< residual shown fully red [grey levels]
   std::string ns = "dem";     ///< marker namespace
   int id = 0;
@@ -41,8 +43,8 @@ class HeightMeshBuilder {
  public:
   /// `elevation`: CV_32F grid.rows x grid.cols [m], NaN unknown. With no known triangle the marker
   /// is a DELETE of (ns, id), so that rviz drops the previous mesh.
-  /// `intensity` (optional, same size, grey 0..255, NaN unknown) is used with color_by_intensity,
-  /// `residual` (optional, same size, grey levels, NaN unknown) with color_by_residual.
+  /// `intensity` (optional, same size, grey 0..255, NaN unknown) is used with kIntensity,
+  /// `residual` (optional, same size, grey levels, NaN unknown) with kResidual.
   static visualization_msgs::Marker build(const GroundGrid& grid, const cv::Mat& elevation,
                                           const std_msgs::Header& header, const HeightMeshOptions& options,
                                           const cv::Mat* intensity = nullptr, const cv::Mat* residual = nullptr);
