@@ -41,6 +41,10 @@ struct StereoEstimatorOptions {
   /// hidden by an obstacle: unknown in the DEM, obstacle in the obstacle layer.
   double hidden_pixel_ratio = 0.3;
   int min_ground_pixels = 6;            ///< fewer pixels: the vertex is not observed
+  /// A vertex whose estimated surface the camera sees this many times more obliquely than level
+  /// ground at the same place (SurfaceIncidence) is not observed: the mesh runs along the rays
+  /// there (draped over a hidden strip behind a rail or wall, the back of a crest). 0: off.
+  double min_incidence_ratio = 0.0;
   bool use_hierarchy = true;            ///< false: the finest mesh only, at pyramid levels L-1..0
   double presmooth_sigma_px = 0.8;      ///< Gaussian blur of level 0 (see ImagePyramid)
   int iterations_per_level = 8;

@@ -1,4 +1,5 @@
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/SurfaceIncidence.hpp"
 
 #include <Eigen/Dense>
 #include <array>
@@ -850,6 +851,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const int samples = last.valid_pixels + last.outside_pixels;
   std::vector<uint8_t> update(static_cast<size_t>(window.vertexCount()), 0);
   int jumps = 0, well_known = 0;
+  // Seen along its rays (the mesh draped over ground hidden behind a rail, the back of a crest):
+  // its pixels do not measure its height.
+  const Eigen::VectorXd incidence =
+      so.min_incidence_ratio > 0.0
+          ? SurfaceIncidence::ratios(window, state.heights, state.camera_T_ground.inverse().translation())
+          : Eigen::VectorXd();
   for (int v = 0; v < window.vertexCount(); ++v) {
     if (last.vertex_pixels.size() == 0 || last.vertex_pixels[v] == 0 || !std::isfinite(state.heights[v])) continue;
     // Too few pixels, or too few with texture (sky behind a crest, glare): no height measurement.
@@ -857,6 +864,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     if (last.vertex_textured_pixels[v] < so.min_ground_pixels) continue;
     // Seen mostly through obstacle pixels: the ground there is hidden, not observed.
     if (last.vertex_excluded_pixels[v] > so.hidden_pixel_ratio * last.vertex_pixels[v]) continue;
+    if (incidence.size() > 0 && incidence[v] < so.min_incidence_ratio) continue;
     update[static_cast<size_t>(v)] = 1;
     if (info[v] > 1e3) {  // std below ~3 cm
       ++well_known;

@@ -102,6 +102,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("obstacle_cost_ratio", &ob.cost_ratio, "obstacle when its photometric cost < ratio * ground's", true);
   d("hidden_pixel_ratio", &s.hidden_pixel_ratio, "vertex hidden by an obstacle when obstacle pixels > ratio * ground pixels", true);
   i("min_ground_pixels", &s.min_ground_pixels, "vertices with fewer ground pixels are not observed", true);
+  d("min_incidence_ratio", &s.min_incidence_ratio,
+    "a vertex seen more obliquely than this fraction of level ground's incidence is not observed (0: off)", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
   // failure handling and input checks

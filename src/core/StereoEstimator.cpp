@@ -37,6 +37,7 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
   }
   if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
   if (!(hidden_pixel_ratio >= 0.0) || min_ground_pixels < 1) return bad("need hidden_pixel_ratio >= 0 and min_ground_pixels >= 1");
+  if (!(min_incidence_ratio >= 0.0) || !(min_incidence_ratio < 1.0)) return bad("min_incidence_ratio must be in [0, 1)");
   std::string w;
   if (!aligner.isValid(&w)) return bad("aligner: " + w);
   if (!obstacles.isValid(&w)) return bad("obstacles: " + w);
