@@ -1,4 +1,5 @@
 #include "stereo_ground_dem/StereoEstimator.hpp"
+#include "stereo_ground_dem/SurfaceIncidence.hpp"
 
 #include <Eigen/Dense>
 #include <cmath>
@@ -336,13 +337,18 @@ StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const Image
   const double nan = std::numeric_limits<double>::quiet_NaN();
   res.obstacle = Eigen::VectorXd::Constant(res.grid.vertexCount(), nan);
   res.obstacle_height = res.obstacle_evidence.height;
+  // seen along its rays (min_incidence_ratio): not measured by its pixels
+  const Eigen::VectorXd incidence =
+      o.min_incidence_ratio > 0.0 ? SurfaceIncidence::ratios(res.grid, state.heights, res.ground_T_camera.translation())
+                                  : Eigen::VectorXd();
   for (int v = 0; v < res.grid.vertexCount(); ++v) {
     const bool hit = res.obstacle_evidence.hit[static_cast<size_t>(v)];
     if (hit) res.obstacle[v] = 1.0;
     else if (res.obstacle_evidence.ground[static_cast<size_t>(v)]) res.obstacle[v] = 0.0;
     // unseen, weakly seen or hidden ground stays unknown rather than invented
     // (too few textured pixels: also too few pixels, they are a subset)
-    if (hit || res.obstacle_evidence.hidden[static_cast<size_t>(v)] || last.vertex_textured_pixels[v] < o.min_ground_pixels) {
+    if (hit || res.obstacle_evidence.hidden[static_cast<size_t>(v)] || last.vertex_textured_pixels[v] < o.min_ground_pixels ||
+        (incidence.size() > 0 && incidence[v] < o.min_incidence_ratio)) {
       res.heights[v] = nan;
     }
   }

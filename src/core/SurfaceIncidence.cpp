@@ -31,9 +31,8 @@ Eigen::VectorXd SurfaceIncidence::ratios(const GroundGrid& grid, const Eigen::Ve
       const int v = grid.index(r, c);
       const double z0 = z[v];
       if (!std::isfinite(z0)) continue;
-      const double at = nan;
-      const double dzdx = slope(z0, c > 0 ? z[v - 1] : at, c + 1 < grid.cols ? z[v + 1] : at, s);
-      const double dzdy = slope(z0, r > 0 ? z[v - grid.cols] : at, r + 1 < grid.rows ? z[v + grid.cols] : at, s);
+      const double dzdx = slope(z0, c > 0 ? z[v - 1] : nan, c + 1 < grid.cols ? z[v + 1] : nan, s);
+      const double dzdy = slope(z0, r > 0 ? z[v - grid.cols] : nan, r + 1 < grid.rows ? z[v + grid.cols] : nan, s);
       if (!std::isfinite(dzdx) || !std::isfinite(dzdy)) continue;
       const Eigen::Vector3d p(grid.xOfCol(c), grid.yOfRow(r), z0);
       const Eigen::Vector3d d = (p - camera_centre_ground).normalized();
