@@ -155,19 +155,19 @@ TEST_P(Scene, MappedWithinItsMeasuredFigures) {
 INSTANTIATE_TEST_SUITE_P(
     Zoo, Scene,
     ::testing::Values(Limits{"flat", 40, 0.05, 0.035, 0.18, 0.9, 0.98},            // 0.03 0.020 0.11 0.56 1.00
-                      Limits{"bump", 40, 0.13, 0.09, 1.0, 3.5, 0.97},               // 0.08 0.054 0.66 2.28 0.997
-                      Limits{"offroad", 40, 0.18, 0.10, 0.8, 10.0, 0.80},           // 0.07 0.011 0.49 7.59 0.844
-                      Limits{"crest", 40, 0.16, 0.30, 4.5, 14.0, 0.97},             // 0.10 0.182 2.82 9.04 0.997
-                      Limits{"sag", 40, 0.04, 0.055, 0.65, 2.6, 0.97},              // 0.02 0.033 0.41 1.63 0.997
-                      Limits{"banked_curve", 40, 0.05, 0.09, 0.5, 2.0, 0.98},       // 0.03 0.057 0.32 1.32 1.00
+                      Limits{"bump", 40, 0.13, 0.09, 1.0, 3.5, 0.97},               // 0.07 0.053 0.67 2.28 0.997
+                      Limits{"offroad", 40, 0.13, 0.09, 0.7, 9.0, 0.80},            // 0.07 0.047 0.36 5.64 0.848
+                      Limits{"crest", 40, 0.09, 0.24, 1.9, 9.5, 0.97},              // 0.05 0.127 1.00 5.14 0.997 (0.10 0.182 2.82 9.04 without skyline_mask)
+                      Limits{"sag", 40, 0.04, 0.055, 0.65, 2.6, 0.97},              // 0.02 0.035 0.44 1.70 0.997
+                      Limits{"banked_curve", 40, 0.05, 0.09, 0.5, 2.0, 0.98},       // 0.03 0.055 0.35 1.41 1.00
                       Limits{"bounce", 40, 0.75, 0.13, 1.4, 3.8, 0.97},             // 0.39 0.068 0.75 1.93 0.998 (1.81 0.460 2.37 6.39 without prealign_refine_iterations)
-                      Limits{"tight_curve", 40, 0.07, 0.16, 1.3, 3.8, 0.96},        // 0.05 0.097 0.84 2.42 0.983
-                      Limits{"ramp", 40, 0.15, 0.30, 0.7, 90.0, 0.90},              // 0.09 0.186 0.44 59.5 0.933
-                      Limits{"rolling", 40, 12.0, 10.0, 4.7, 130.0, 0.90},          // 7.82 4.90 2.80 64.3 0.929
-                      // + obstacle layer: free ground flagged %, ghosts %, static recall % (measured 5.95 22.6 -, 15.2 11.6 99.3;
+                      Limits{"tight_curve", 40, 0.07, 0.16, 1.3, 3.8, 0.96},        // 0.05 0.097 0.83 2.41 0.983
+                      Limits{"ramp", 40, 0.15, 0.30, 0.7, 90.0, 0.90},              // 0.09 0.211 0.43 56.9 0.938
+                      Limits{"rolling", 40, 10.0, 6.0, 1.2, 130.0, 0.90},           // 5.41 3.10 0.64 113 0.914 (7.82 4.90 2.80 64.3 without skyline_mask)
+                      // + obstacle layer: free ground flagged %, ghosts %, static recall % (measured 5.72 23.0 -, 15.3 11.5 99.3;
                       // the targets of issue 10 are 2 % and no ghosts: docs/results.md, "Obstacles in sequences")
-                      Limits{"shadows", 40, 2.6, 1.9, 1.2, 19.0, 0.97, 8.0, 30.0, -2.0},   // 1.31 1.034 0.84 13.4 0.994
-                      Limits{"traffic", 40, 0.13, 0.18, 0.36, 2.5, 0.88, 20.0, 16.0, 95.0}),  // 0.06 0.119 0.24 1.67 0.915
+                      Limits{"shadows", 40, 2.5, 1.9, 1.2, 19.0, 0.97, 8.0, 30.0, -2.0},   // 1.27 0.996 0.93 14.3 0.994
+                      Limits{"traffic", 40, 0.10, 0.18, 0.36, 2.5, 0.88, 20.0, 16.0, 95.0}),  // 0.05 0.097 0.27 1.81 0.914
     [](const ::testing::TestParamInfo<Limits>& i) { return std::string(i.param.name); });
 
 class RealClip : public Zoo {};
@@ -266,8 +266,8 @@ TEST(TrajectoryConsistency, SeesAVerticalWanderOfExactPoses) {
 
 INSTANTIATE_TEST_SUITE_P(
     Kitti, RealClip,
-    ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 80, 1.8, 0.75, 30.0, 60.0, 0.85},  // 1.21 0.481 20.7 40.9 0.933
-                      Limits{"kitti_odom_seq06_f000-050", 51, 1.6, 0.9, 1.0, 1.0, 0.5}),         // 1.01 0.601 (no heights)
+    ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 80, 1.8, 0.75, 30.0, 60.0, 0.85},  // 1.20 0.462 20.3 40.4 0.931
+                      Limits{"kitti_odom_seq06_f000-050", 51, 1.6, 0.9, 1.0, 1.0, 0.5}),         // 1.04 0.589 (no heights)
     [](const ::testing::TestParamInfo<Limits>& i) {
       return std::string(i.param.name).rfind("kitti_raw", 0) == 0 ? std::string("RawDrive0013") : std::string("Odometry06");
     });
@@ -317,7 +317,7 @@ TEST_P(GappedClip, FirstLongGapFindsTheStep) {
 // KITTI raw 0013, every 3rd frame (0.3 s, ~3.6 m per step): the motion search without a velocity
 // took the cheapest step (0.4 m: far ground and everything above it barely change there) and the
 // constant velocity kept it: 124 % drift, 48.8 deg, every frame "tracked". With the local minima of
-// the search as candidates: 1.97 %, 1.36 deg; with prealign_refine_iterations 8 (default): 1.71 %, 1.20 deg. (Every 4th frame, 4.9 m steps: 121 % -> 24 %; from
+// the search as candidates: 1.97 %, 1.36 deg; with prealign_refine_iterations 8 (default): 1.71 %, 1.20 deg (1.73 %, 1.24 deg with min_incidence_ratio 0.1, 2026-12-02). (Every 4th frame, 4.9 m steps: 121 % -> 24 %; from
 // frame 11 on, under the overpass, it locks onto half the step: open, not tested here.)
 INSTANTIATE_TEST_SUITE_P(Kitti, GappedClip,
                          ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 3, 3.3, 2.3, 1.0, 1.0, 0.5}),

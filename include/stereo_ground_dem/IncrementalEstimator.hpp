@@ -22,6 +22,7 @@
 #include "stereo_ground_dem/EstimatorState.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/MotionPredictor.hpp"
+#include "stereo_ground_dem/SkylineMask.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TemporalConsistency.hpp"
 #include "stereo_ground_dem/TrackingCheck.hpp"
@@ -45,6 +46,7 @@ struct IncrementalEstimatorOptions {
   TrackingCheckOptions check;             ///< plausibility tests of a tracked frame
   DisparityPlaneFitOptions ground_plane;  ///< the pair's dominant plane (attitude hypotheses)
   TemporalConsistencyOptions temporal_consistency;  ///< moving texture skipped by the temporal pairs
+  SkylineMaskOptions skyline;             ///< the ground's outline against a blank background: skipped by them too
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)

@@ -44,7 +44,7 @@ struct StereoEstimatorOptions {
   /// A vertex whose estimated surface the camera sees this many times more obliquely than level
   /// ground at the same place (SurfaceIncidence) is not observed: the mesh runs along the rays
   /// there (draped over a hidden strip behind a rail or wall, the back of a crest). 0: off.
-  double min_incidence_ratio = 0.0;
+  double min_incidence_ratio = 0.1;
   bool use_hierarchy = true;            ///< false: the finest mesh only, at pyramid levels L-1..0
   double presmooth_sigma_px = 0.8;      ///< Gaussian blur of level 0 (see ImagePyramid)
   int iterations_per_level = 8;

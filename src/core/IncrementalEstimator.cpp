@@ -46,6 +46,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (iterations_per_level < 1 || fine_iterations < 1) return bad("iterations_per_level and fine_iterations must be >= 1");
   if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
   if (!check.isValid(&w)) return bad(w);
+  if (!skyline.isValid(&w)) return bad(w);
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
   if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0 || prealign_screen_iterations < 0) {
     return bad("prealign_level, prealign_iterations, prealign_refine_iterations and prealign_screen_iterations must be >= 0");
@@ -606,6 +607,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prev_r.target_T_ground = stereo_.rightTLeft(stereo_.rectification()) * prev_c_T_g;
   prev_r.row_shift_px = stereo_t.row_shift_px;
   prev_r.excluded = nullptr;  // the previous obstacle mask is in the previous LEFT image
+  // The ground's outline against a blank sky moves with the viewpoint, not with the ground
+  // (SkylineMask): the temporal pairs skip it, later also the moving texture.
+  std::vector<cv::Mat> temporal_skipped = SkylineMask(options_.skyline).compute(*pl);
+  if (!temporal_skipped.empty()) {
+    prev_l.reference_excluded = &temporal_skipped;
+    prev_r.reference_excluded = &temporal_skipped;
+  }
   SurfaceAlignerOptions ao = so.alignerOptions();
   ao.estimate_motion = true;
 
@@ -832,8 +840,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
                            state.photometric[0], state.photometric[1], stereo_.rectification());
       res.moving_pixels = moving.pixels;
       if (!moving.masks.empty()) {
-        prev_l.reference_excluded = &moving.masks;
-        prev_r.reference_excluded = &moving.masks;
+        for (size_t ml = 0; ml < moving.masks.size(); ++ml) {
+          if (ml >= temporal_skipped.size()) temporal_skipped.push_back(moving.masks[ml]);
+          else if (temporal_skipped[ml].empty()) temporal_skipped[ml] = moving.masks[ml];
+          else if (!moving.masks[ml].empty()) cv::bitwise_or(temporal_skipped[ml], moving.masks[ml], temporal_skipped[ml]);
+        }
+        prev_l.reference_excluded = &temporal_skipped;
+        prev_r.reference_excluded = &temporal_skipped;
         if (l == temporal_finest) {
           ++l;  // this level once more
           second_pass = true;

@@ -116,6 +116,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
   b("exclude_previous_obstacles", &e.exclude_previous_obstacles,
     "temporal pairs skip samples on the previous frame's obstacle pixels", true);
+  b("skyline_mask", &e.skyline.enabled,
+    "temporal pairs skip the ground's outline against a blank background (sky): it moves with the viewpoint", true);
+  d("skyline_blank_gradient_grey_per_px", &e.skyline.blank_gradient_grey_per_px,
+    "... blank: mean image gradient over a 9 px box below this [grey/px]", true);
   b("use_cross_temporal_pair", &e.use_cross_temporal_pair,
     "also align with the previous right image (ties motion to the stereo calibration)", true);
   d("motion_search_min_m", &e.motion_search_min_m, "search without a velocity: shortest step per frame period [m]", true);
