@@ -12,6 +12,7 @@
 
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/ParameterTable.hpp"
+#include "stereo_ground_dem/SkylineMask.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 #include "stereo_ground_dem/io/AllocatorTuning.hpp"
@@ -125,6 +126,19 @@ void BM_Pyramids(benchmark::State& state) {
   state.SetLabel("two images: grey, blur, 4 levels, gradients");
 }
 BENCHMARK(BM_Pyramids)->Unit(benchmark::kMillisecond);
+
+void BM_SkylineMask(benchmark::State& state) {
+  const Sample& s = Sample::get();
+  const StereoEstimator est(s.seq.rig(), s.options.estimator.stereo);
+  const ImagePyramid l = est.makePyramid(s.left[0]);
+  const SkylineMask mask(s.options.estimator.skyline);
+  for (auto _ : state) {
+    const std::vector<cv::Mat> m = mask.compute(l);
+    benchmark::DoNotOptimize(m.data());
+  }
+  state.SetLabel("the left pyramid, every level (once per tracked frame)");
+}
+BENCHMARK(BM_SkylineMask)->Unit(benchmark::kMillisecond);
 
 void BM_ObstacleDetector(benchmark::State& state) {
   const Sample& s = Sample::get();

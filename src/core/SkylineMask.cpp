@@ -37,7 +37,8 @@ cv::Mat SkylineMask::level(const cv::Mat& grad_u, const cv::Mat& grad_v, int l) 
   // Per column: the blank run from the image's top edge down to the first textured row. Only
   // that outline: a blank patch within the ground (smooth asphalt) is not a background.
   std::vector<int> run(static_cast<size_t>(cols), 0);  // blank rows from the top, -1 once textured
-  for (int v = 0; v < rows; ++v) {
+  int open = cols;  // columns still blank from the top
+  for (int v = 0; v < rows && open > 0; ++v) {
     const float* m = mean.ptr<float>(v);
     for (int u = 0; u < cols; ++u) {
       int& r = run[static_cast<size_t>(u)];
@@ -51,6 +52,7 @@ cv::Mat SkylineMask::level(const cv::Mat& grad_u, const cv::Mat& grad_v, int l) 
         for (int w = v0; w < v1; ++w) mask.at<uint8_t>(w, u) = 255;
       }
       r = -1;
+      --open;
     }
   }
   return mask;
