@@ -50,6 +50,11 @@ TEST(SkylineMask, BandAlongTheOutlineOfGroundAgainstSky) {
   EXPECT_GT(markedInRows(m1, horizon / 2 - 10, horizon / 2 + 14), 0.95 * 16 * m1.cols);
   EXPECT_LE(cv::countNonZero(m1), 16 * m1.cols);
   EXPECT_EQ(cv::countNonZero(m1), markedInRows(m1, horizon / 2 - 10, horizon / 2 + 14));
+  // from level 1 on only (the estimator's finest temporal level): level 0 left empty, the rest the same
+  const std::vector<cv::Mat> from1 = SkylineMask(SkylineMaskOptions()).compute(p, 1);
+  ASSERT_EQ(from1.size(), 3u);
+  EXPECT_TRUE(from1[0].empty());
+  EXPECT_EQ(cv::countNonZero(from1[1] != m1), 0);
 }
 
 // Ground alone, a blank slab inside it (smooth asphalt) or a sky shorter than min_blank_rows

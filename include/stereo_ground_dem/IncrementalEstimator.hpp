@@ -232,6 +232,7 @@ class IncrementalEstimator {
   Eigen::Isometry3d ground_T_camera_ = Eigen::Isometry3d::Identity();  ///< last good frame
   MotionPredictor predictor_;    ///< last good pose and stamp, velocity
   TrackingCheck check_;
+  SkylineMask skyline_;
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
   double prealign_level_ = 0.0;  ///< running pre-alignment cost per sample of good frames
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;

@@ -50,9 +50,9 @@ class SkylineMask {
  public:
   /// Throws std::invalid_argument on invalid options.
   explicit SkylineMask(const SkylineMaskOptions& options);
-  /// One CV_8U mask per level of `pyramid` (nonzero = along a blank background's outline); empty
-  /// when disabled.
-  std::vector<cv::Mat> compute(const ImagePyramid& pyramid) const;
+  /// One CV_8U mask per level of `pyramid` (nonzero = along a blank background's outline), left
+  /// empty (not computed) below `first_level`; no masks at all when disabled.
+  std::vector<cv::Mat> compute(const ImagePyramid& pyramid, int first_level = 0) const;
   /// The mask of pyramid level `l` from its gradient images (CV_32F [grey/px]).
   cv::Mat level(const cv::Mat& grad_u, const cv::Mat& grad_v, int l) const;
   const SkylineMaskOptions& options() const { return options_; }

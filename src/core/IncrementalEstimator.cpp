@@ -79,7 +79,7 @@ const IncrementalEstimatorOptions& validated(const IncrementalEstimatorOptions& 
 
 IncrementalEstimator::IncrementalEstimator(const StereoRig& rig, const IncrementalEstimatorOptions& options)
     : rig_(rig), options_(validated(options)), stereo_(rig, options.stereo), rectification_(options.stereo.rectification), map_(mapOptions(options)),
-      predictor_(predictorOptions()), check_(options.check) {}
+      predictor_(predictorOptions()), check_(options.check), skyline_(options.skyline) {}
 
 MotionPredictorOptions IncrementalEstimator::predictorOptions() const {
   MotionPredictorOptions m;
@@ -609,7 +609,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prev_r.excluded = nullptr;  // the previous obstacle mask is in the previous LEFT image
   // The ground's outline against a blank sky moves with the viewpoint, not with the ground
   // (SkylineMask): the temporal pairs skip it, later also the moving texture.
-  std::vector<cv::Mat> temporal_skipped = SkylineMask(options_.skyline).compute(*pl);
+  // (only the levels the temporal pairs use: the finest temporal level and coarser)
+  std::vector<cv::Mat> temporal_skipped = skyline_.compute(*pl, effectiveTemporalFinestLevel(pl->level(0).image.cols));
   if (!temporal_skipped.empty()) {
     prev_l.reference_excluded = &temporal_skipped;
     prev_r.reference_excluded = &temporal_skipped;

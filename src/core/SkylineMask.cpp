@@ -58,12 +58,14 @@ cv::Mat SkylineMask::level(const cv::Mat& grad_u, const cv::Mat& grad_v, int l) 
   return mask;
 }
 
-std::vector<cv::Mat> SkylineMask::compute(const ImagePyramid& pyramid) const {
+std::vector<cv::Mat> SkylineMask::compute(const ImagePyramid& pyramid, int first_level) const {
   std::vector<cv::Mat> masks;
   if (!options_.enabled || pyramid.empty()) return masks;
+  masks.resize(static_cast<size_t>(pyramid.levels()));
   // Each level from its own gradients: the pyramid's blur widens the outline's edge by about a
   // pixel of that level, so the band holds it in that level's pixels.
-  for (int l = 0; l < pyramid.levels(); ++l) masks.push_back(level(pyramid.level(l).grad_u, pyramid.level(l).grad_v, l));
+  for (int l = std::max(0, first_level); l < pyramid.levels(); ++l)
+    masks[static_cast<size_t>(l)] = level(pyramid.level(l).grad_u, pyramid.level(l).grad_v, l);
   return masks;
 }
 
