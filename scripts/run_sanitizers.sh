@@ -53,6 +53,12 @@ job() {
   cpu=$(awk '{printf "%.0f", $1 + $2}' "$LOGS/$name.cpu" 2>/dev/null || echo "?")
   echo "$status $(( $(date +%s) - t0 )) $cpu" > "$LOGS/$name.result"
 }
+# Two accuracy tests over long rendered drives stay out of this run: under ASan at -O1 each took
+# 12-13 minutes of a shard (28 shadow frames twice; four 20-frame drives), half of the stage. The
+# main test run asserts their figures; their code runs here in shorter tests: hypothesis screening
+# (prealign_screen_iterations, default 3) in IncrementalEstimator.MovingShadowsAreTestedAfterTheCoarsestJointLevel
+# and every tracked frame, GroundAttitudeEstimator in test_core's GroundAttitude.* and dem_offline.
+ASAN_SKIP="-IncrementalEstimator.HypothesesAreScreenedWithFewerIterations:GroundAttitude.FollowsTheTruthOnRenderedDrives"
 # The two long test binaries are split into JOBS gtest shards that run side by side.
 names=()
 commands=()
@@ -60,7 +66,7 @@ for t in "${TESTS[@]}"; do
   if [ "$t" = test_estimators ] || [ "$t" = test_obstacles ]; then
     for ((i = 0; i < JOBS; i++)); do
       names+=("$t.shard$i")
-      commands+=("env GTEST_TOTAL_SHARDS=$JOBS GTEST_SHARD_INDEX=$i $BIN/$t")
+      commands+=("env GTEST_TOTAL_SHARDS=$JOBS GTEST_SHARD_INDEX=$i GTEST_FILTER=$ASAN_SKIP $BIN/$t")
     done
   else
     names+=("$t")
