@@ -215,7 +215,8 @@ class IncrementalEstimator {
                std::unique_ptr<ImagePyramid>& pr, const std::vector<PhotometricParams>& photometric);
   bool rectificationDue(int frame_index) const;
   void addPairCheck(const StereoPairCheck& check);
-  std::vector<Eigen::Isometry3d> rankedSearch(const ImagePyramid& left, double stamp_s) const;
+  std::vector<Eigen::Isometry3d> rankedSearch(const ImagePyramid& left, double stamp_s,
+                                              const std::vector<cv::Mat>& skipped) const;
   MotionPredictorOptions predictorOptions() const;
   /// The pose whose height and attitude above the ground come from the pair's dominant plane
   /// (DisparityPlaneFit on the sparse matches of `check`) and the map's local plane ahead, with

@@ -341,7 +341,8 @@ PhotometricParams IncrementalEstimator::statsPhotometric(const ImagePyramid& ref
   return stereo_.initialPhotometric(ref, other, camera_T_ground);
 }
 
-std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyramid& left, double stamp_s) const {
+std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyramid& left, double stamp_s,
+                                                                  const std::vector<cv::Mat>& skipped) const {
   // Score every pose of the search grid by its photometric cost alone (no iteration) against the
   // previous left image at the coarsest level; far from the minimum the robust cost is too flat
   // for Gauss-Newton to walk the whole way (measured on KITTI: it stalls at 0.3 m of a 1.2 m step).
@@ -355,6 +356,7 @@ std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyr
   prev.rig_fixed = false;
   prev.target_T_ground = ground_T_camera_.inverse();
   prev.estimate_photometric = false;
+  if (!skipped.empty()) prev.reference_excluded = &skipped;
   AlignmentProblem prob;
   prob.reference = &left;
   prob.rig = &rig_;
@@ -574,13 +576,17 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   FrameResult& res = *out;
   const StereoEstimatorOptions& so = options_.stereo;
   const double dt = predictor_.gap(stamp_s);
+  // The ground's outline against a blank sky moves with the viewpoint, not with the ground
+  // (SkylineMask): every comparison with the previous images skips it, the search included.
+  // (only the levels the temporal pairs use: the finest temporal level and coarser)
+  std::vector<cv::Mat> temporal_skipped = skyline_.compute(*pl, effectiveTemporalFinestLevel(pl->level(0).image.cols));
   // Starting poses: the predictor's hypotheses, or the best of its search grid without a velocity.
   std::vector<Eigen::Isometry3d> starts;  // modified below: not const
   size_t anchored_index = std::numeric_limits<size_t>::max();  // where the ground-anchored start is
   if (predictor_.velocityKnown()) {
     starts = predictor_.hypotheses(stamp_s);
   } else {
-    starts = rankedSearch(*pl, stamp_s);
+    starts = rankedSearch(*pl, stamp_s, temporal_skipped);
     Eigen::Isometry3d anchored;
     if (groundAnchoredPose(stereo_.checkPair(*pl, *pr), starts.front(), &anchored)) {
       starts.insert(starts.begin() + 1, anchored);
@@ -607,10 +613,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prev_r.target_T_ground = stereo_.rightTLeft(stereo_.rectification()) * prev_c_T_g;
   prev_r.row_shift_px = stereo_t.row_shift_px;
   prev_r.excluded = nullptr;  // the previous obstacle mask is in the previous LEFT image
-  // The ground's outline against a blank sky moves with the viewpoint, not with the ground
-  // (SkylineMask): the temporal pairs skip it, later also the moving texture.
-  // (only the levels the temporal pairs use: the finest temporal level and coarser)
-  std::vector<cv::Mat> temporal_skipped = skyline_.compute(*pl, effectiveTemporalFinestLevel(pl->level(0).image.cols));
+  // The temporal pairs skip the outline (above), later also the moving texture.
   if (!temporal_skipped.empty()) {
     prev_l.reference_excluded = &temporal_skipped;
     prev_r.reference_excluded = &temporal_skipped;
