@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 #include <sys/stat.h>
 #include <sys/wait.h>
 
@@ -70,9 +71,38 @@ TEST_F(DemOffline, SequenceModeOnTheBundledSample) {
   const Outcome r = run("--sequence " + kSample + " --out " + out + " --frames 4 --quiet");
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* f : {"dem.tif", "dem.yaml", "trajectory_kitti.txt", "trajectory_tum.txt", "timing.csv",
-                        "variance.tif", "traversability.tif", "mesh.ply", "summary.txt", "dem_disparity_000000.png",
+                        "alignments.csv", "variance.tif", "traversability.tif", "mesh.ply", "summary.txt", "dem_disparity_000000.png",
                         "intensity.tif", "ortho.tif", "ortho.png", "residual.tif", "residual_outlier_rate.tif"}) {
     EXPECT_TRUE(exists(out + "/" + f)) << f;
+  }
+  // alignments.csv: every Gauss-Newton pass of the tracked frames, coarse to fine; a tracked frame
+  // ends with the joint passes at pyramid level 1 (two pairs, motion and heights) and level 0
+  // (the stereo pair, heights only).
+  {
+    std::ifstream csv(out + "/alignments.csv");
+    std::string header, row;
+    ASSERT_TRUE(std::getline(csv, header));
+    EXPECT_EQ(header.rfind("frame,pass,level,pairs,motion,heights,iterations,", 0), 0u) << header;
+    std::vector<std::vector<std::string>> rows;
+    while (std::getline(csv, row)) {
+      std::vector<std::string> f;
+      std::istringstream rs(row);
+      for (std::string c; std::getline(rs, c, ',');) f.push_back(c);
+      ASSERT_EQ(f.size(), 19u) << row;
+      rows.push_back(f);
+    }
+    ASSERT_GE(rows.size(), 6u);  // frames 1-3, at least two joint passes each
+    const std::vector<std::string>& last = rows.back();
+    EXPECT_EQ(last[0], "3");
+    EXPECT_EQ(last[2], "0");  // level 0
+    EXPECT_EQ(last[3], "1");  // the stereo pair
+    EXPECT_EQ(last[4], "0");  // no motion
+    EXPECT_EQ(last[5], "1");  // heights
+    EXPECT_GT(std::stoi(last[9]), 1);    // evaluations
+    EXPECT_GT(std::stoi(last[16]), 1000);  // samples
+    bool joint_level1 = false;
+    for (const auto& f : rows) joint_level1 = joint_level1 || (f[0] == "3" && f[2] == "1" && f[3] == "2" && f[4] == "1" && f[5] == "1");
+    EXPECT_TRUE(joint_level1);
   }
   // The ortho-texture: 4 frames of the KITTI road, 0.1 m texels, grey levels of a real road.
   GroundGrid og;

@@ -147,6 +147,10 @@ struct AlignmentProblem {
 };
 
 struct AlignmentReport {
+  int level = -1;                    ///< the pyramid level aligned
+  int pairs = 0;                     ///< image pairs in the data term
+  bool motion = false;               ///< the motion was estimated
+  bool heights = false;              ///< the heights were estimated
   int iterations = 0;
   int accepted_steps = 0;
   bool converged = false;

@@ -84,6 +84,10 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   checkProblem(problem, state);
   thread_local Workspace ws;
   AlignmentReport report;
+  report.level = problem.level;
+  report.pairs = static_cast<int>(problem.targets.size());
+  report.motion = options_.estimate_motion;
+  report.heights = problem.estimate_heights;
   using Clock = std::chrono::steady_clock;
   auto ms = [](Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
   auto t0 = Clock::now();

@@ -352,6 +352,10 @@ int runSequence(const Args& a) {
   std::ofstream timing(a.out + "/timing.csv");
   timing << "frame,ms,pyramid_ms,prealign_ms,obstacle_ms,joint_ms,other_ms,evaluations,ortho_ms,residual_ms\n";
   std::ofstream frames(a.out + "/frames.csv");
+  // every Gauss-Newton pass of every frame, in the order run: where a frame's time goes
+  std::ofstream alignments(a.out + "/alignments.csv");
+  alignments << "frame,pass,level,pairs,motion,heights,iterations,accepted_steps,converged,evaluations,setup_ms,"
+                "evaluate_ms,raster_ms,solve_ms,working_triangles,active_vertices,valid_pixels,initial_cost,final_cost\n";
   frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
   std::vector<double> tum_stamps, ms_all;
@@ -418,6 +422,14 @@ int runSequence(const Args& a) {
     }
     int evaluations = 0;
     for (const AlignmentReport& r : fr.reports) evaluations += r.evaluations;
+    for (size_t k = 0; k < fr.reports.size(); ++k) {
+      const AlignmentReport& r = fr.reports[k];
+      alignments << i << "," << k << "," << r.level << "," << r.pairs << "," << r.motion << "," << r.heights << ","
+                 << r.iterations << "," << r.accepted_steps << "," << r.converged << "," << r.evaluations << ","
+                 << r.setup_ms << "," << r.evaluate_ms << "," << r.raster_ms << "," << r.solve_ms << ","
+                 << r.working_triangles << "," << r.active_vertices << "," << r.valid_pixels << "," << r.initial_cost
+                 << "," << r.final_cost << "\n";
+    }
     timing << i << "," << fr.time_ms << "," << fr.pyramid_ms << "," << fr.prealign_ms << "," << fr.obstacle_ms << ","
            << fr.joint_ms << "," << fr.time_ms - fr.pyramid_ms - fr.prealign_ms - fr.obstacle_ms - fr.joint_ms << ","
            << evaluations << "," << ortho_ms << "," << residual_ms << "\n";
@@ -442,7 +454,9 @@ int runSequence(const Args& a) {
   }
   timing.close();
   frames.close();
-  if (!timing || !frames) throw std::runtime_error("cannot write timing.csv or frames.csv in '" + a.out + "'");
+  if (!timing || !frames || !alignments) {
+    throw std::runtime_error("cannot write timing.csv, frames.csv or alignments.csv in '" + a.out + "'");
+  }
   std::vector<double> sorted = ms_all;
   std::sort(sorted.begin(), sorted.end());
   const double mean = std::accumulate(ms_all.begin(), ms_all.end(), 0.0) / ms_all.size();
@@ -510,7 +524,7 @@ int runSequence(const Args& a) {
               n, mapped, failures, rejected, unreadable, mean, median, peakMemoryMb());
   std::printf("wrote %s/{dem.tif, dem.yaml, variance.tif, traversability.tif, dem_height.png, traversability.png, "
               "mesh.ply, traversability_confidence.tif, obstacles.tif, obstacle_height.tif, intensity.tif, ortho.tif, ortho.png, residual.tif, residual_outlier_rate.tif, %s, dem_disparity_overlay.png, trajectory_kitti.txt, "
-              "trajectory_tum.txt, timing.csv, frames.csv, summary.txt, state/}\n",
+              "trajectory_tum.txt, timing.csv, frames.csv, alignments.csv, summary.txt, state/}\n",
               a.out.c_str(), disparity_name.c_str());
   return 0;
 }
