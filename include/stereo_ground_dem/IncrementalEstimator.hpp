@@ -42,6 +42,12 @@ struct IncrementalEstimatorOptions {
   int tracking_levels = 2;                ///< mesh/pyramid levels used per tracked frame (<= mesh_levels)
   int iterations_per_level = 5;           ///< Gauss-Newton iterations per coarse level (>= 2)
   int fine_iterations = 3;                ///< ... at pyramid levels 0 and 1
+  /// ... of the levels without the temporal pairs (level 0 at KITTI resolution), which start from
+  /// the heights and motion of the level above (0: fine_iterations).
+  int stereo_fine_iterations = 0;
+  /// ... of the finest temporal level's second run, after the moving-texture test found texture
+  /// to skip (0: fine_iterations).
+  int repeat_iterations = 0;
   double nominal_frame_period_s = 0.1;    ///< used when stamps do not increase
   TrackingCheckOptions check;             ///< plausibility tests of a tracked frame
   DisparityPlaneFitOptions ground_plane;  ///< the pair's dominant plane (attitude hypotheses)

@@ -44,6 +44,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
     return bad("min_temporal_width_px must be in 0..100000");
   }
   if (iterations_per_level < 1 || fine_iterations < 1) return bad("iterations_per_level and fine_iterations must be >= 1");
+  if (stereo_fine_iterations < 0 || repeat_iterations < 0) return bad("stereo_fine_iterations and repeat_iterations must be >= 0");
   if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
   if (!check.isValid(&w)) return bad(w);
   if (!skyline.isValid(&w)) return bad(w);
@@ -778,7 +779,10 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     ao.max_depth_m = std::min(ao.max_depth_m, options_.motion_max_depth_m);
     ao_coarse.max_depth_m = std::min(ao_coarse.max_depth_m, options_.motion_max_depth_m);
   }
-  const SurfaceAligner aligner_motion(ao), aligner_static(ao_static);
+  if (options_.stereo_fine_iterations > 0) ao_static.max_iterations = options_.stereo_fine_iterations;
+  SurfaceAlignerOptions ao_repeat = ao;
+  if (options_.repeat_iterations > 0) ao_repeat.max_iterations = options_.repeat_iterations;
+  const SurfaceAligner aligner_motion(ao), aligner_static(ao_static), aligner_repeat(ao_repeat);
   const SurfaceAligner aligner_motion_coarse(ao_coarse), aligner_static_coarse(ao_static_coarse);
   AlignmentProblem prob;
   prob.reference = pl.get();
@@ -815,7 +819,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     prob.want_motion_information =
         options_.motion_information && temporal && l == temporal_finest && !second_pass;
     const SurfaceAligner& aligner = l >= 2 ? (temporal ? aligner_motion_coarse : aligner_static_coarse)
-                                           : (temporal ? aligner_motion : aligner_static);
+                                           : (temporal ? (second_pass ? aligner_repeat : aligner_motion) : aligner_static);
     last = aligner.align(prob, level_state);
     res.reports.push_back(last);
     if (prob.want_motion_information) res.motion_information = last.motion_information;

@@ -83,6 +83,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("presmooth_sigma_px", &s.presmooth_sigma_px, "Gaussian blur of full-resolution images [px]");
   i("iterations_per_level", &e.iterations_per_level, "Gauss-Newton iterations per coarse level, incremental mode", true);
   i("fine_iterations", &e.fine_iterations, "Gauss-Newton iterations at pyramid levels 0 and 1, incremental mode", true);
+  i("stereo_fine_iterations", &e.stereo_fine_iterations,
+    "... at the fine levels without the temporal pairs (level 0 at KITTI resolution; 0: fine_iterations)", true);
+  i("repeat_iterations", &e.repeat_iterations,
+    "... of the finest temporal level's second run, after the moving-texture test (0: fine_iterations)", true);
   i("stereo_iterations_per_level", &s.iterations_per_level, "Gauss-Newton iterations per level, stereo mode", true);
   i("tracking_levels", &e.tracking_levels, "mesh/pyramid levels used for each tracked frame (<= mesh_levels)", true);
   i("temporal_finest_level", &e.temporal_finest_level, "finest pyramid level of the temporal pairs and motion", true);

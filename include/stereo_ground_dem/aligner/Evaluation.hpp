@@ -22,6 +22,8 @@ using Matrix62d = Eigen::Matrix<double, 6, 2>;
 ///   [6..8]   sum w Jd^T e
 ///   [9..14]  sum w Jd^T (I0, 1)  (row-major 3x2)
 ///   [15..32] sum w Jd^T Jm       (row-major 3x6, world-fixed pairs only)
+/// A world-fixed pair of a motion-only problem has no per-triangle sums (stride 0): its motion
+/// block is summed per pair.
 constexpr int kStrideRig = 15;
 constexpr int kStrideWorld = 33;
 

@@ -46,7 +46,7 @@ class PhotometricEvaluator {
                    ThreadPart* part, int runs) const;
   template <int kKind, bool kShift>
   void pairRow(const PairContext& p, size_t j, size_t ns, int v, RowPixels& px, ThreadPart* part) const;
-  template <bool kWorld>
+  template <bool kWorld, bool kTriangles>
   void accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs, Evaluation* ev,
                       ThreadPart* part) const;
   /// The level's threads, made once per evaluator (an arena per parallel section costs more
@@ -67,6 +67,15 @@ class PhotometricEvaluator {
   std::vector<double> vertex_u_, vertex_v_;
   std::vector<uint8_t> vertex_ok_;  ///< in front of the camera
   double raster_ms_ = 0.0;
+  /// Per band of rows of a rasterization: the triangles that won pixels in raster order, each
+  /// one's first row, and (valid where stamp == generation_) its last row.
+  struct BandSlots {
+    std::vector<int> tri, first_row;
+    std::vector<unsigned> stamp;
+    std::vector<int> last_row;
+  };
+  BandSlots band_[2];
+  unsigned generation_ = 0;
   std::vector<int> slot_of_, slot_tri_;  ///< the rasterization's slots
   std::vector<int> slot_last_row_;       ///< per slot: the last row with its pixels
   std::vector<int> slots_before_row_;    ///< per row: slots first seen above it

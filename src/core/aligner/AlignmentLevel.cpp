@@ -37,7 +37,10 @@ AlignmentLevel::AlignmentLevel(const SurfaceAlignerOptions& o, const AlignmentPr
       photo_index_[j] = global_count_;
       global_count_ += 2;
     }
-    strides_.push_back(o.estimate_motion && !p.targets[j].rig_fixed ? kStrideWorld : kStrideRig);
+    // A world-fixed pair's motion block is summed per pair; per triangle only what the heights
+    // need (nothing when they are fixed). A rig pair's motion block comes from its triangles.
+    const bool world = o.estimate_motion && !p.targets[j].rig_fixed;
+    strides_.push_back(world ? (p.estimate_heights ? kStrideWorld : 0) : kStrideRig);
   }
   threads_ = std::max(1, o.num_threads);
 }
@@ -154,18 +157,31 @@ void AlignmentLevel::selectWorkingSet(const GroundGrid& g, const SurfaceState& s
     pix[static_cast<size_t>(v)] = {rig_.fx * xc.x() / xc.z() + rig_.cx, rig_.fy * xc.y() / xc.z() + rig_.cy};
   }
   std::vector<int> local(static_cast<size_t>(nv), -1);
-  for (int t = 0; t < g.triangleCount(); ++t) {
-    const auto tv = g.triangle(t);
-    if (!ok[static_cast<size_t>(tv[0])] || !ok[static_cast<size_t>(tv[1])] || !ok[static_cast<size_t>(tv[2])]) continue;
-    double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
-    for (int a : tv) {
-      const auto& p = pix[static_cast<size_t>(a)];
-      umin = std::min(umin, p.x());
-      umax = std::max(umax, p.x());
-      vmin = std::min(vmin, p.y());
-      vmax = std::max(vmax, p.y());
+  // The triangles in GroundGrid order (t = 2 (r (cols - 1) + c) + {0, 1}: GroundGrid::triangle)
+  // whose vertices are eligible and whose image bounding box meets the image; counted first.
+  std::vector<std::array<int, 3>> kept;
+  kept.reserve(static_cast<size_t>(g.triangleCount()));
+  for (int r = 0; r + 1 < g.rows; ++r) {
+    for (int c = 0; c + 1 < g.cols; ++c) {
+      const int v00 = g.index(r, c), v11 = v00 + g.cols + 1;
+      for (const std::array<int, 3>& tv : {std::array<int, 3>{v00, v00 + 1, v11}, std::array<int, 3>{v00, v11, v00 + g.cols}}) {
+        if (!ok[static_cast<size_t>(tv[0])] || !ok[static_cast<size_t>(tv[1])] || !ok[static_cast<size_t>(tv[2])]) continue;
+        double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
+        for (int a : tv) {
+          const auto& p = pix[static_cast<size_t>(a)];
+          umin = std::min(umin, p.x());
+          umax = std::max(umax, p.x());
+          vmin = std::min(vmin, p.y());
+          vmax = std::max(vmax, p.y());
+        }
+        if (umax < 0 || vmax < 0 || umin > width_ - 1 || vmin > height_ - 1) continue;
+        kept.push_back(tv);
+      }
     }
-    if (umax < 0 || vmax < 0 || umin > width_ - 1 || vmin > height_ - 1) continue;
+  }
+  tris_.reserve(kept.size());
+  active_.reserve(std::min(kept.size(), static_cast<size_t>(nv)));
+  for (const std::array<int, 3>& tv : kept) {
     TriangleGeometry tg;
     tg.vertex = tv;
     std::array<Eigen::Vector2d, 3> xy;

@@ -78,7 +78,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
   Eigen::VectorXd data_diag = Eigen::VectorXd::Zero(na);
   // rows: heights (row-major: a triangle's rows are written together)
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> hzg_rows =
-      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(na, ng);
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(prob.estimate_heights ? na : 0, ng);
   Eigen::MatrixXd hgg = Eigen::MatrixXd::Zero(ng, ng);
   Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
   const double ks = level_.dataScale();
@@ -101,7 +101,10 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
     Matrix6d rig_mm = Matrix6d::Zero();
     Vector6d rig_me = Vector6d::Zero();
     Matrix62d rig_mp = Matrix62d::Zero();
-    for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
+    // per triangle: what the heights need, and a rig pair's motion (nothing else when the heights
+    // are fixed: a world-fixed pair then has no per-triangle sums)
+    const size_t slots = stride > 0 && (prob.estimate_heights || (rig && opt.estimate_motion)) ? ev.slot_tri.size() : 0;
+    for (size_t k2 = 0; k2 < slots; ++k2) {
       const TriangleGeometry& t = tris[static_cast<size_t>(ev.slot_tri[k2])];
       if (sum.tri_pixels[k2] == 0) continue;
       const double* acc = sum.tri[j].data() + k2 * static_cast<size_t>(stride);
@@ -112,8 +115,8 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
       dp << acc[9], acc[10], acc[11], acc[12], acc[13], acc[14];
       const double scale = PlaneGeometry::deltaScale(t.m, p.t_prime);
       const Eigen::Matrix3d a = scale * t.dm_dz;  // delta = a * dz
-      const Eigen::Matrix3d atd = ks * a.transpose() * dd;
       if (prob.estimate_heights) {
+        const Eigen::Matrix3d atd = ks * a.transpose() * dd;
         const Eigen::Matrix3d hz = atd * a;
         const Eigen::Vector3d g3 = ks * a.transpose() * de;
         for (int r = 0; r < 3; ++r) {
@@ -132,7 +135,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
           // bm = d delta / d xi = scale [-m m^T, -[m]_x] (PlaneGeometry::cameraPlaneMotionJacobian)
           const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(t.m);
           const Matrix36d dbm = ks * (dd * bm);  // ks dd bm, shared by three blocks
-          hzm.noalias() = a.transpose() * dbm;
+          if (prob.estimate_heights) hzm.noalias() = a.transpose() * dbm;
           for (int r = 0; r < 6; ++r) {
             for (int q = r; q < 6; ++q)
               rig_mm(r, q) += bm(0, r) * dbm(0, q) + bm(1, r) * dbm(1, q) + bm(2, r) * dbm(2, q);
@@ -142,7 +145,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
               rig_mp(r, 1) += ks * (bm(0, r) * dp(0, 1) + bm(1, r) * dp(1, 1) + bm(2, r) * dp(2, 1));
             }
           }
-        } else {
+        } else if (prob.estimate_heights) {
           const Eigen::Map<const Eigen::Matrix<double, 3, 6, Eigen::RowMajor>> dm(acc + 15);
           hzm = ks * a.transpose() * dm;
         }

@@ -82,53 +82,87 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
   }
   // Two threads draw two bands of rows, split where about half of the triangles' area lies
   // above; a triangle across the split is drawn by both, clipped. Within a band the triangles are
-  // drawn in the same order as by one thread, so every pixel gets the same winner.
+  // drawn in the same order as by one thread, so every pixel gets the same winner. Each band then
+  // lists the triangles that won pixels in it, in raster order, with their first and last rows.
   const int threads = level_.threads();
+  const int height = level_.height();
+  const cv::Mat& labels = raster.labels();
+  ++generation_;
+  for (BandSlots& b : band_) {
+    b.tri.clear();
+    b.first_row.clear();
+    if (b.stamp.size() != nt) {
+      b.stamp.assign(nt, 0);
+      b.last_row.assign(nt, -1);
+    }
+  }
+  auto scan = [&](int b, int first, int last) {
+    BandSlots& bs = band_[static_cast<size_t>(b)];
+    for (int v = first; v <= last; ++v) {
+      const int* lab = labels.ptr<int>(v);
+      for (int u = raster.rowBegin(v); u <= raster.rowEnd(v); ++u) {
+        const int ti = lab[u];
+        if (ti < 0) continue;
+        const size_t t = static_cast<size_t>(ti);
+        if (bs.stamp[t] != generation_) {
+          bs.stamp[t] = generation_;
+          bs.tri.push_back(ti);
+          bs.first_row.push_back(v);
+        }
+        bs.last_row[t] = v;
+      }
+    }
+  };
+  int split = height;  // band 0: rows [0, split), band 1: [split, height)
   if (threads > 1 && projected.size() > 64) {
-    std::vector<double> area_by_row(static_cast<size_t>(level_.height()) + 1, 0.0);
+    std::vector<double> area_by_row(static_cast<size_t>(height) + 1, 0.0);
     double total = 0.0;
     for (const TriangleRasterizer::Triangle& rt : projected) {
       const double area = std::abs((rt.u[1] - rt.u[0]) * (rt.v[2] - rt.v[0]) - (rt.v[1] - rt.v[0]) * (rt.u[2] - rt.u[0]));
       const double vc = (rt.v[0] + rt.v[1] + rt.v[2]) / 3.0;
-      area_by_row[static_cast<size_t>(std::clamp(static_cast<int>(vc), 0, level_.height()))] += area;
+      area_by_row[static_cast<size_t>(std::clamp(static_cast<int>(vc), 0, height))] += area;
       total += area;
     }
-    int split = 0;
-    for (double acc = 0.0; split < level_.height() && acc < 0.5 * total; ++split) acc += area_by_row[static_cast<size_t>(split)];
+    split = 0;
+    for (double acc = 0.0; split < height && acc < 0.5 * total; ++split) acc += area_by_row[static_cast<size_t>(split)];
     auto band = [&](int b) {
-      const int first = b == 0 ? 0 : split, last = b == 0 ? split - 1 : level_.height() - 1;
+      const int first = b == 0 ? 0 : split, last = b == 0 ? split - 1 : height - 1;
       for (const TriangleRasterizer::Triangle& rt : projected) {
         if (std::max({rt.v[0], rt.v[1], rt.v[2]}) < first || std::min({rt.v[0], rt.v[1], rt.v[2]}) > last) continue;
         raster.draw(rt, first, last);
       }
+      scan(b, first, last);
     };
     arena().execute([&] { tbb::parallel_for(0, 2, band); });
   } else {
     for (const TriangleRasterizer::Triangle& rt : projected) raster.draw(rt);
+    scan(0, 0, height - 1);
   }
-  // slots for the triangles that won pixels, numbered in raster order
+  // Slots for the triangles that won pixels, numbered in raster order: band 0's, then band 1's
+  // not already in band 0 (the order one scan of the whole image gives).
   slot_of_.assign(nt, -1);
   slot_tri_.clear();
   slot_last_row_.clear();
-  slots_before_row_.assign(static_cast<size_t>(level_.height()) + 1, 0);
-  const cv::Mat& labels = raster.labels();
-  for (int v = 0; v < level_.height(); ++v) {
-    slots_before_row_[static_cast<size_t>(v)] = static_cast<int>(slot_tri_.size());
-    const int* lab = labels.ptr<int>(v);
-    for (int u = raster.rowBegin(v); u <= raster.rowEnd(v); ++u) {
-      const int ti = lab[u];
-      if (ti < 0) continue;
-      int& slot = slot_of_[static_cast<size_t>(ti)];
-      if (slot < 0) {
-        slot = static_cast<int>(slot_tri_.size());
-        slot_tri_.push_back(ti);
-        slot_last_row_.push_back(v);
-      } else {
-        slot_last_row_[static_cast<size_t>(slot)] = v;
-      }
+  slots_before_row_.assign(static_cast<size_t>(height) + 1, 0);
+  size_t next = 0;  // rows up to the first row of the next new slot get the count so far
+  int row = 0;
+  auto newSlot = [&](int ti, int first_row, int last_row) {
+    for (; row <= first_row; ++row) slots_before_row_[static_cast<size_t>(row)] = static_cast<int>(next);
+    slot_of_[static_cast<size_t>(ti)] = static_cast<int>(next++);
+    slot_tri_.push_back(ti);
+    slot_last_row_.push_back(last_row);
+  };
+  for (int b = 0; b < 2; ++b) {
+    const BandSlots& bs = band_[static_cast<size_t>(b)];
+    for (size_t i = 0; i < bs.tri.size(); ++i) {
+      const int ti = bs.tri[i];
+      const int last_row = bs.last_row[static_cast<size_t>(ti)];
+      const int slot = slot_of_[static_cast<size_t>(ti)];
+      if (slot < 0) newSlot(ti, bs.first_row[i], last_row);
+      else slot_last_row_[static_cast<size_t>(slot)] = std::max(slot_last_row_[static_cast<size_t>(slot)], last_row);
     }
   }
-  slots_before_row_[static_cast<size_t>(level_.height())] = static_cast<int>(slot_tri_.size());
+  for (; row <= height; ++row) slots_before_row_[static_cast<size_t>(row)] = static_cast<int>(next);
 }
 
 /// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
@@ -388,7 +422,9 @@ void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns
                   : pairRow<kWarpProjective, false>(p, j, ns, v, px, part);
       break;
   }
-  p.world ? accumulateRuns<true>(p, j, y, px, runs, ev, part) : accumulateRuns<false>(p, j, y, px, runs, ev, part);
+  if (!p.world) accumulateRuns<false, true>(p, j, y, px, runs, ev, part);
+  else if (level_.strides()[j] > 0) accumulateRuns<true, true>(p, j, y, px, runs, ev, part);
+  else accumulateRuns<true, false>(p, j, y, px, runs, ev, part);
 }
 
 template <int kKind, bool kShift>
@@ -499,10 +535,11 @@ void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, in
   }
 }
 
-template <bool kWorld>
+template <bool kWorld, bool kTriangles>
 void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float y, const RowPixels& px, int runs,
                                           Evaluation* ev, ThreadPart* part) const {
   constexpr int kStride = kWorld ? kStrideWorld : kStrideRig;
+  static_assert(kWorld || kTriangles, "a rig pair's motion comes from its triangles");
   const std::vector<TriangleGeometry>& tris = level_.triangles();
   const float tx = static_cast<float>(p.t_prime.x()), ty = static_cast<float>(p.t_prime.y()),
               tz = static_cast<float>(p.t_prime.z());
@@ -522,6 +559,17 @@ void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float 
     // the row, so its sums are multiples of those without it
     float s0 = 0, s1 = 0, s2 = 0, e0 = 0, e1 = 0, p0 = 0, p1 = 0, q0 = 0, q1 = 0;
     float g0 = 0, g1 = 0, g2 = 0, h0 = 0, h1 = 0;
+    if (!kTriangles) {
+#pragma omp simd reduction(+ : g0, g1, g2, h0, h1)
+      for (int k = a; k < b; ++k) {
+        const float w = wk[k], we = wek[k], i0 = i0k[k];
+        g0 += w * i0 * i0;
+        g1 += w * i0;
+        g2 += w;
+        h0 += we * i0;
+        h1 += we;
+      }
+    } else {
 #pragma omp simd reduction(+ : s0, s1, s2, e0, e1, p0, p1, q0, q1, g0, g1, g2, h0, h1)
     for (int k = a; k < b; ++k) {
       const float w = wk[k], we = wek[k], i0 = i0k[k], dx = xk[k] - xr;
@@ -543,10 +591,12 @@ void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float 
       h0 += we * i0;
       h1 += we;
     }
+    }
     if (g2 == 0.0f) continue;  // no sample of this run was used
     const double x0 = xr;
+    double* acc = kTriangles ? tri_acc + static_cast<size_t>(px.slot[static_cast<size_t>(a)]) * kStride : nullptr;
+    if (kTriangles) {
     const double S1 = s1 + x0 * s0, S2 = s2 + 2.0 * x0 * s1 + x0 * x0 * s0;
-    double* acc = tri_acc + static_cast<size_t>(px.slot[static_cast<size_t>(a)]) * kStride;
     acc[0] += S2;
     acc[1] += yd * S1;
     acc[2] += S1;
@@ -562,6 +612,7 @@ void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float 
     acc[12] += yd * q0;
     acc[13] += p0;
     acc[14] += q0;
+    }
     pa.pp(0, 0) += g0;
     pa.pp(0, 1) += g1;
     pa.pp(1, 1) += g2;
@@ -584,14 +635,18 @@ void PhotometricEvaluator::accumulateRuns(const PairContext& p, size_t j, float 
         me += we * jm;
         mp += i0k[k] * wj;
         mq += wj;
-        f += ws * jm;
-        fx += (ws * (x - xr)) * jm;
+        if (kTriangles) {
+          f += ws * jm;
+          fx += (ws * (x - xr)) * jm;
+        }
       }
-      double* am = acc + 15;
       for (int r2 = 0; r2 < 6; ++r2) {
-        am[r2] += fx[r2] + x0 * f[r2];
-        am[6 + r2] += yd * f[r2];
-        am[12 + r2] += f[r2];
+        if (kTriangles) {
+          double* am = acc + 15;
+          am[r2] += fx[r2] + x0 * f[r2];
+          am[6 + r2] += yd * f[r2];
+          am[12 + r2] += f[r2];
+        }
         for (int c3 = r2; c3 < 6; ++c3) pa.mm(r2, c3) += hm[r2][c3];
         pa.me(r2) += me[r2];
         pa.mp(r2, 0) += mp[r2];
