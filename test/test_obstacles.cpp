@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/ObstacleDetector.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TraversabilityFilter.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
@@ -164,6 +165,29 @@ std::vector<double> absolute(std::vector<double> e) {
 // Measured (this code, deterministic): 12 cm curb, road side median 0.40 cm (p95 1.0), sidewalk
 // 0.38 cm (p95 2.3); 0.4 m step, low side median 0.94 cm (p95 3.7), high side 1.10 cm (p95 2.8).
 // The bound is 2 cm.
+// The plane sweeps of the obstacle test split between two threads give exactly the one-thread
+// mask and disparities (the halves are merged so that the earlier candidate wins ties).
+TEST(Obstacles, DetectorGivesTheSameMaskOnAnyNumberOfThreads) {
+  const Pair c = renderPair(sim::SceneKind::kFlatRoad, true);
+  const StereoEstimator est(c.rig, StereoEstimatorOptions());
+  const StereoResult r = est.estimate(c.pair.left.image, c.pair.right.image);
+  ASSERT_TRUE(r.ok) << r.message;
+  const ImagePyramid left = est.makePyramid(c.pair.left.image), right = est.makePyramid(c.pair.right.image);
+  ObstacleDetectorOptions o;
+  // the level plane of the estimated ground frame (the road is flat), as the estimator's start
+  const Eigen::VectorXd level_ground = Eigen::VectorXd::Zero(r.grid.vertexCount());
+  const cv::Mat rho = est.surfaceInverseDepth(left, r.grid, level_ground, r.ground_T_camera.inverse(), o.level);
+  o.num_threads = 1;
+  const ObstacleMask one = ObstacleDetector(o).detect(left, right, c.rig, r.photometric, rho);
+  o.num_threads = 2;
+  const ObstacleMask two = ObstacleDetector(o).detect(left, right, c.rig, r.photometric, rho);
+  EXPECT_GT(one.pixels, 100);  // the parked car, the wall, the poles (measured: 189 at the test level)
+  EXPECT_EQ(one.pixels, two.pixels);
+  ASSERT_EQ(one.excluded.size(), two.excluded.size());
+  for (size_t l = 0; l < one.excluded.size(); ++l) EXPECT_EQ(cv::countNonZero(one.excluded[l] != two.excluded[l]), 0) << l;
+  EXPECT_EQ(cv::countNonZero(one.disparity != two.disparity), 0);
+}
+
 TEST(Obstacles, CurbAndStepStayStepsBesideObstacles) {
   {
     const Pair c = renderPair(sim::SceneKind::kBumpAndCurb, true);

@@ -47,6 +47,9 @@ struct ObstacleDetectorOptions {
   /// Hidden ground this close to a cell where the thing stands is its body (a car's footprint
   /// seen from behind); farther hidden ground is its occlusion shadow and stays unknown [m].
   double hidden_body_depth_m = 1.5;
+  /// Threads of the plane sweeps (the ground bands and the upright disparities are split between
+  /// them; the result is the same for any number).
+  int num_threads = 1;
 
   bool isValid(std::string* why) const;
 };

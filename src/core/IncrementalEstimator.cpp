@@ -11,6 +11,8 @@
 #include "stereo_ground_dem/TemporalConsistency.hpp"
 #include <sstream>
 #include <stdexcept>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 namespace stereo_ground_dem {
 
@@ -510,11 +512,25 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   if (initialized_ && stamp_s < predictor_.lastStamp()) return reject("time stamp goes backwards");
   std::unique_ptr<ImagePyramid> pl, pr;
   const auto t_pyr = std::chrono::steady_clock::now();
-  try {
-    pl = std::make_unique<ImagePyramid>(stereo_.makePyramid(left, order));
-    pr = std::make_unique<ImagePyramid>(stereo_.makePyramid(right, order));
-  } catch (const std::invalid_argument& e) {
-    return reject(e.what());
+  {
+    // the two pyramids side by side (the same images for any number of threads)
+    std::string bad_image[2];
+    auto build = [&](int i) {
+      try {
+        (i == 0 ? pl : pr) = std::make_unique<ImagePyramid>(stereo_.makePyramid(i == 0 ? left : right, order));
+      } catch (const std::invalid_argument& e) {
+        bad_image[i] = e.what();
+      }
+    };
+    if (options_.stereo.aligner.num_threads > 1) {
+      tbb::task_arena arena(2);
+      arena.execute([&] { tbb::parallel_for(0, 2, build); });
+    } else {
+      build(0);
+      build(1);
+    }
+    for (const std::string& why : bad_image)
+      if (!why.empty()) return reject(why);
   }
   res.pyramid_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_pyr).count();
   const std::string bad = checkImages(*pl, *pr);

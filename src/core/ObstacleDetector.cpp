@@ -2,8 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <memory>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #include <stdexcept>
 
 namespace stereo_ground_dem {
@@ -23,6 +27,7 @@ bool ObstacleDetectorOptions::isValid(std::string* why) const {
   if (!(ground_band_m >= 0.0) || !(ground_band_m < camera_height_m)) return bad("ground_band_m must be in [0, camera_height_m)");
   if (!(hidden_body_depth_m >= 0.0) || !(hidden_body_depth_m <= 10.0)) return bad("hidden_body_depth_m must be in [0, 10]");
   if (dilation_px < 0) return bad("dilation_px must be >= 0");
+  if (num_threads < 1) return bad("num_threads must be >= 1");
   return true;
 }
 
@@ -141,46 +146,63 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     for (int u = 0; u < w; ++u) d[u] = rho[u] > 0.0f ? static_cast<float>(fxb * rho[u]) : 0.0f;
   }
   const cv::Size win(o.window_width_px, o.window_height_px);
-  cv::Mat cost_g(h, w, CV_32F, cv::Scalar(1e30f));
-  cv::Mat res_g(h, w, CV_32F), valid_g(h, w, CV_32F), sum_g, cnt_g;
   const int bands = std::max(1, static_cast<int>(std::ceil(o.ground_band_m / 0.1)));
-  for (int k = -bands; k <= bands; ++k) {
-    const double hk = o.ground_band_m * k / bands;
-    const float sc = static_cast<float>(o.camera_height_m / (o.camera_height_m - hk));
-    res_g.setTo(0.0f);
-    valid_g.setTo(0.0f);
-    for (int v = 0; v < h; ++v) {
-      const float* d = dg.ptr<float>(v);
-      const float* lr = l.ptr<float>(v);
-      const float* ar = a.ptr<float>(v);
-      float* rg = res_g.ptr<float>(v);
-      float* vg = valid_g.ptr<float>(v);
-      for (int u = 0; u < w; ++u) {
-        if (!(d[u] > 0.0f)) continue;
-        const float x = static_cast<float>(u) - d[u] * sc;
-        if (x < 0.0f || x >= w - 1) continue;
-        const int x0 = static_cast<int>(x);
-        const float f = x - static_cast<float>(x0);
-        rg[u] = std::abs(lr[u] - ((1.0f - f) * ar[x0] + f * ar[x0 + 1]));
-        vg[u] = 1.0f;
+  // The band offsets k in [k0, k1): the lowest mean |residual| over each pixel's window.
+  auto sweepGround = [&](int k0, int k1, cv::Mat* cost) {
+    *cost = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
+    cv::Mat res_g(h, w, CV_32F), valid_g(h, w, CV_32F), sum_g, cnt_g;
+    for (int k = k0; k < k1; ++k) {
+      const double hk = o.ground_band_m * k / bands;
+      const float sc = static_cast<float>(o.camera_height_m / (o.camera_height_m - hk));
+      res_g.setTo(0.0f);
+      valid_g.setTo(0.0f);
+      for (int v = 0; v < h; ++v) {
+        const float* d = dg.ptr<float>(v);
+        const float* lr = l.ptr<float>(v);
+        const float* ar = a.ptr<float>(v);
+        float* rg = res_g.ptr<float>(v);
+        float* vg = valid_g.ptr<float>(v);
+        for (int u = 0; u < w; ++u) {
+          if (!(d[u] > 0.0f)) continue;
+          const float x = static_cast<float>(u) - d[u] * sc;
+          if (x < 0.0f || x >= w - 1) continue;
+          const int x0 = static_cast<int>(x);
+          const float f = x - static_cast<float>(x0);
+          rg[u] = std::abs(lr[u] - ((1.0f - f) * ar[x0] + f * ar[x0 + 1]));
+          vg[u] = 1.0f;
+        }
+      }
+      cv::boxFilter(res_g, sum_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+      cv::boxFilter(valid_g, cnt_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+      for (int v = 0; v < h; ++v) {
+        const float* s = sum_g.ptr<float>(v);
+        const float* c = cnt_g.ptr<float>(v);
+        float* cg = cost->ptr<float>(v);
+        for (int u = 0; u < w; ++u) {
+          if (c[u] >= 0.5f * win.area()) cg[u] = std::min(cg[u], s[u] / c[u]);
+        }
       }
     }
-    cv::boxFilter(res_g, sum_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
-    cv::boxFilter(valid_g, cnt_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
-    for (int v = 0; v < h; ++v) {
-      const float* s = sum_g.ptr<float>(v);
-      const float* c = cnt_g.ptr<float>(v);
-      float* cg = cost_g.ptr<float>(v);
-      for (int u = 0; u < w; ++u) {
-        if (c[u] >= 0.5f * win.area()) cg[u] = std::min(cg[u], s[u] / c[u]);
-      }
-    }
-  }
+  };
+  // Two threads take the two halves of the sweeps; the minimum is the same in any order, and the
+  // upright sweep's halves are merged so that the earlier candidate wins ties, as in one pass.
+  const bool two = o.num_threads > 1;
+  std::unique_ptr<tbb::task_arena> arena = two ? std::make_unique<tbb::task_arena>(2) : nullptr;
+  auto both = [&](const std::function<void(int)>& f) {
+    if (two) arena->execute([&] { tbb::parallel_for(0, 2, f); });
+    else f(0);
+  };
+  cv::Mat cost_g, cost_g2;
+  both([&](int c) {
+    const int mid = two ? 0 : bands + 1;  // band offsets -bands..mid-1 and mid..bands
+    if (c == 0) sweepGround(-bands, mid, &cost_g);
+    else sweepGround(mid, bands + 1, &cost_g2);
+  });
+  if (two) cv::min(cost_g, cost_g2, cost_g);
 
   // Upright hypothesis: fronto-parallel windows at integer disparities closer than the ground.
   const double ratio = o.camera_height_m / (o.camera_height_m - o.min_obstacle_height_m);
   const int dmax = std::min(w - 2, static_cast<int>(std::ceil(fxb / o.min_range_m)));
-  cv::Mat best(h, w, CV_32F, cv::Scalar(1e30f)), best_d = cv::Mat::zeros(h, w, CV_32F);
   cv::Mat thr(h, w, CV_32F);
   for (int v = 0; v < h; ++v) {
     const float* d = dg.ptr<float>(v);
@@ -200,38 +222,70 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
   const int r0 = std::max(0, row0 - hh), r1 = std::min(h - 1, row1 + hh);
   const cv::Range rows(r0, r1 + 1);
   const float inv_area = 1.0f / static_cast<float>(win.area());
-  cv::Mat diff(h, w, CV_32F, cv::Scalar(0.0f)), sum_d;
   // Integer disparities, and half-pixel steps where they are small (far obstacles): a window
   // half a pixel off its disparity costs as much as the ground on fine texture.
   std::vector<float> candidates;
   for (int d2 = 2; d2 <= 2 * dmax; ++d2) {
     if (d2 % 2 == 0 || d2 < 2 * kHalfStepBelowPx) candidates.push_back(0.5f * static_cast<float>(d2));
   }
-  for (const float df : candidates) {
-    const int d = static_cast<int>(std::ceil(df));
-    const float f = static_cast<float>(d) - df;  // right sample at u - df = (1 - f) * a[u-d] + f * a[u-d+1]
-    for (int v = r0; v <= r1; ++v) {
-      const float* lr = l.ptr<float>(v);
-      const float* ar = a.ptr<float>(v);
-      float* dfp = diff.ptr<float>(v);
-      if (f == 0.0f) {
-        for (int u = d; u < w; ++u) dfp[u] = std::abs(lr[u] - ar[u - d]);
-      } else {
-        for (int u = d; u < w; ++u) dfp[u] = std::abs(lr[u] - ((1.0f - f) * ar[u - d] + f * ar[u - d + 1]));
+  // Candidates [c0, c1): the cheapest window per pixel (the first of equals) and its disparity.
+  auto sweepUpright = [&](size_t c0, size_t c1, cv::Mat* best, cv::Mat* best_d) {
+    *best = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
+    *best_d = cv::Mat::zeros(h, w, CV_32F);
+    cv::Mat diff(h, w, CV_32F, cv::Scalar(0.0f)), sum_d;
+    for (size_t ci = c0; ci < c1; ++ci) {
+      const float df = candidates[ci];
+      const int d = static_cast<int>(std::ceil(df));
+      const float f = static_cast<float>(d) - df;  // right sample at u - df = (1 - f) * a[u-d] + f * a[u-d+1]
+      for (int v = r0; v <= r1; ++v) {
+        const float* lr = l.ptr<float>(v);
+        const float* ar = a.ptr<float>(v);
+        float* dfp = diff.ptr<float>(v);
+        if (f == 0.0f) {
+          for (int u = d; u < w; ++u) dfp[u] = std::abs(lr[u] - ar[u - d]);
+        } else {
+          for (int u = d; u < w; ++u) dfp[u] = std::abs(lr[u] - ((1.0f - f) * ar[u - d] + f * ar[u - d + 1]));
+        }
+      }
+      cv::boxFilter(diff.rowRange(rows), sum_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_REPLICATE);
+      for (int v = row0; v <= row1; ++v) {
+        const float* s = sum_d.ptr<float>(v - r0);
+        const float* t = thr.ptr<float>(v);
+        float* b = best->ptr<float>(v);
+        float* bd = best_d->ptr<float>(v);
+        for (int u = d + hw; u < w; ++u) {  // windows reaching past the left border are skipped
+          if (df < t[u]) continue;
+          const float m = s[u] * inv_area;
+          if (m < b[u]) {
+            b[u] = m;
+            bd[u] = df;
+          }
+        }
       }
     }
-    cv::boxFilter(diff.rowRange(rows), sum_d, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_REPLICATE);
+  };
+  // The split that gives both halves about the same number of columns to sweep.
+  size_t mid = candidates.size();
+  if (two) {
+    double total = 0.0, acc = 0.0;
+    for (float df : candidates) total += w - std::ceil(df);
+    for (mid = 0; mid < candidates.size() && acc < 0.5 * total; ++mid) acc += w - std::ceil(candidates[mid]);
+  }
+  cv::Mat best, best_d, best2, best_d2;
+  both([&](int c) {
+    if (c == 0) sweepUpright(0, mid, &best, &best_d);
+    else sweepUpright(mid, candidates.size(), &best2, &best_d2);
+  });
+  if (two) {
     for (int v = row0; v <= row1; ++v) {
-      const float* s = sum_d.ptr<float>(v - r0);
-      const float* t = thr.ptr<float>(v);
       float* b = best.ptr<float>(v);
       float* bd = best_d.ptr<float>(v);
-      for (int u = d + hw; u < w; ++u) {  // windows reaching past the left border are skipped
-        if (df < t[u]) continue;
-        const float m = s[u] * inv_area;
-        if (m < b[u]) {
-          b[u] = m;
-          bd[u] = df;
+      const float* b2 = best2.ptr<float>(v);
+      const float* bd2 = best_d2.ptr<float>(v);
+      for (int u = 0; u < w; ++u) {
+        if (b2[u] < b[u]) {
+          b[u] = b2[u];
+          bd[u] = bd2[u];
         }
       }
     }

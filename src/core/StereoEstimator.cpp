@@ -398,6 +398,7 @@ ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const Im
   ObstacleDetectorOptions oo = options_.obstacles;
   oo.camera_height_m = std::max(options_.nominal_height_m, oo.min_obstacle_height_m + 0.1);
   oo.level = std::min(oo.level, left.levels() - 1);
+  oo.num_threads = options_.aligner.num_threads;
   const ObstacleDetector detector(oo);
   cv::Mat rho = surfaceInverseDepth(left, grid, heights, camera_T_ground, oo.level);
   // Beyond the mesh (farther than max_range_m or wider than max_lateral_m) the ground hypothesis
