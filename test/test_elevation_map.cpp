@@ -52,6 +52,7 @@ class Archive : public ::testing::Test {
     }
     map.fuse(w, z, Eigen::VectorXd::Zero(w.vertexCount()), inf, update, 3);
     map.fuse(w, z, inf, inf, update, 4);
+    map.updateObstacles(w, hit, ground, obstacle_height, 3);  // a mark needs two frames' evidence
     map.updateObstacles(w, hit, ground, obstacle_height, 4);
     return map;
   }
@@ -162,4 +163,43 @@ TEST_F(Archive, UnwritableArchiveDirectoryIsAnError) {
     EXPECT_EQ(std::string(e.what()).rfind("ElevationMap: cannot write archive tile '" + o.archive_directory + "/tile_", 0), 0u)
         << e.what();
   }
+}
+
+// The obstacle score (ElevationMapOptions::obstacle_*): one frame's evidence marks nothing, two
+// frames' do; a freshly confirmed mark (a car that drove through) goes with one frame that sees
+// the ground there, a long-standing one (capped at obstacle_max_score) with two.
+TEST(ElevationMapObstacles, AMarkNeedsTwoFramesAndLongStandingMarksTwoGroundFrames) {
+  ElevationMap map;
+  const GroundGrid w = GroundGrid::covering(0.0, 5.0, 0.0, 5.0, 0.5);
+  const int n = w.vertexCount();
+  std::vector<uint8_t> update(static_cast<size_t>(n), 1), hit(update.size(), 0), ground(update.size(), 0),
+      none(update.size(), 0);
+  map.fuse(w, Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 100.0), update, 0);
+  const int a = w.index(2, 2), b = w.index(6, 6);
+  hit[static_cast<size_t>(a)] = hit[static_cast<size_t>(b)] = 1;
+  const Eigen::VectorXd height = Eigen::VectorXd::Constant(n, 1.2);
+  auto marked = [&](int v) {
+    const cv::Mat layer = map.layer(ElevationMap::Layer::kObstacle, w);
+    return layer.at<float>(w.rowOf(v), w.colOf(v)) == 1.0f;
+  };
+  map.updateObstacles(w, hit, none, height, 1);
+  EXPECT_FALSE(marked(a)) << "one frame's evidence";
+  map.updateObstacles(w, hit, none, height, 2);
+  EXPECT_TRUE(marked(a) && marked(b)) << "two frames' evidence";
+  for (int f = 3; f < 6; ++f) {  // b keeps being seen: its score reaches the cap
+    std::vector<uint8_t> only_b(update.size(), 0);
+    only_b[static_cast<size_t>(b)] = 1;
+    map.updateObstacles(w, only_b, none, height, f);
+  }
+  ground[static_cast<size_t>(a)] = ground[static_cast<size_t>(b)] = 1;
+  map.updateObstacles(w, none, ground, height, 6);
+  EXPECT_FALSE(marked(a)) << "a fresh mark goes with one frame that sees the ground";
+  EXPECT_TRUE(marked(b)) << "a long-standing one needs two";
+  map.updateObstacles(w, none, ground, height, 7);
+  EXPECT_FALSE(marked(b));
+  ElevationMapOptions bad;
+  bad.obstacle_mark_score = 3.0;  // above the cap: nothing could ever be marked
+  std::string why;
+  EXPECT_FALSE(bad.isValid(&why));
+  EXPECT_NE(why.find("max_score"), std::string::npos) << why;
 }

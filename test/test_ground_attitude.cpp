@@ -70,7 +70,8 @@ TEST(GroundAttitude, PlaneFromTheMapIgnoresCurbsObstaclesAndFarGround) {
     if (std::hypot(p.x(), p.y()) > 9.0) z[v] += 3.0;  // beyond the radius: a hill that must not count
   }
   map.fuse(w, z, Eigen::VectorXd::Zero(w.vertexCount()), Eigen::VectorXd::Constant(w.vertexCount(), 100.0), update, 0);
-  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Zero(w.vertexCount()), 0);
+  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Zero(w.vertexCount()), 0);  // two frames' evidence
+  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Zero(w.vertexCount()), 1);
   const Eigen::Isometry3d c = cameraOnPlane(abc, 0.2, -0.1, 0.4, 1.5, 0.08, 0.02);
   const sgd::GroundAttitudeEstimate e = sgd::GroundAttitudeEstimator().estimate(map, c);
   ASSERT_TRUE(e.valid);

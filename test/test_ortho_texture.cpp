@@ -163,7 +163,8 @@ TEST(OrthoTexture, LeavesObstacleCellsAndUnknownHeightsOut) {
   std::vector<uint8_t> hit(static_cast<size_t>(w.vertexCount()), 0), ground(hit.size(), 0);
   const int obstacle_v = w.index(static_cast<int>(std::lround((0.0 - w.y0()) / 0.5)), static_cast<int>(std::lround(10.0 / 0.5)));
   hit[static_cast<size_t>(obstacle_v)] = 1;
-  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Constant(w.vertexCount(), std::nan("")), 0);
+  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Constant(w.vertexCount(), std::nan("")), 0);  // two frames' evidence
+  map.updateObstacles(w, hit, ground, Eigen::VectorXd::Constant(w.vertexCount(), std::nan("")), 1);
   sgd::OrthoTexture t;
   t.update(map, w, image(camera(0.0)), rig(), camera(0.0), sgd::PhotometricParams());
   int known = 0;

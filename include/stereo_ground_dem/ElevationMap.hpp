@@ -28,9 +28,13 @@ struct ElevationMapOptions {
   int tile_size = 64;               ///< vertices per tile side
   double keep_radius_m = 200.0;     ///< tiles whose centre is farther from the vehicle are evicted [m]
   double max_information = 1e6;     ///< cap on a vertex's information [1/m^2] (std >= 1 mm)
-  float obstacle_hit = 1.0f;        ///< score added by a frame that sees an obstacle there
-  float obstacle_miss = 1.0f;       ///< score removed by a frame that sees the ground there
-  float obstacle_max_score = 2.0f;  ///< cap: two frames that see the ground clear a mark (>= hit)
+  /// Score added by a frame that sees an obstacle there: below obstacle_mark_score, so that a mark
+  /// needs two frames' evidence (one frame's misplaced obstacle points, which scatter from frame to
+  /// frame, mark nothing; docs/results.md, "The obstacle layer").
+  double obstacle_hit = 0.6;
+  double obstacle_mark_score = 1.0;  ///< a vertex with at least this score is an obstacle
+  double obstacle_miss = 1.0;        ///< score removed by a frame that sees the ground there
+  double obstacle_max_score = 2.0;   ///< cap: two frames that see the ground clear a mark (>= mark)
   std::string archive_directory;    ///< empty: evicted tiles are dropped
 
   bool isValid(std::string* why) const;

@@ -47,6 +47,16 @@ struct ObstacleDetectorOptions {
   /// Hidden ground this close to a cell where the thing stands is its body (a car's footprint
   /// seen from behind); farther hidden ground is its occlusion shadow and stays unknown [m].
   double hidden_body_depth_m = 1.5;
+  /// The body only behind its visible face, along the camera's rays (false: in every direction,
+  /// so that hidden ground beside a thing's end is its body too). Along the rays: fewer marks on
+  /// free ground, fewer obstacle cells found (docs/results.md, "The obstacle layer").
+  bool hidden_body_along_ray = false;
+  /// An obstacle pixel's depth is that of its column's foot (the ground's just below the lowest
+  /// obstacle pixel of its run, or the foot of the run below it in the column), unless the run's
+  /// own median disparity and the foot's differ by more than a factor 1 / foot_min_ratio: then its
+  /// windows' own disparities (detect()).
+  bool foot_depth = true;
+  double foot_min_ratio = 0.67;
   /// Threads of the plane sweeps (the ground bands and the upright disparities are split between
   /// them; the result is the same for any number).
   int num_threads = 1;
@@ -81,12 +91,13 @@ class ObstacleDetector {
   /// ground pixels: the ground behind the thing is not seen); a hidden vertex within
   /// `body_depth_m` of a hit vertex is hit too (the thing's body), the others are neither hit nor
   /// ground (its occlusion shadow: unknown). It is ground when it had `min_ground_pixels` ground
-  /// pixels and is neither hit nor hidden.
+  /// pixels and is neither hit nor hidden. With `camera_position` (ground frame), the body reaches
+  /// only behind a hit vertex along the ray from the camera (hidden_body_along_ray).
   static ObstacleEvidence evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
                                    const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
                                    const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
                                    int min_ground_pixels, double min_obstacle_height_m, double body_depth_m,
-                                   int min_points = 2);
+                                   int min_points = 2, const Eigen::Vector3d* camera_position = nullptr);
 
   explicit ObstacleDetector(const ObstacleDetectorOptions& options);
 

@@ -25,6 +25,10 @@ bool ElevationMapOptions::isValid(std::string* why) const {
   if (tile_size < 8 || tile_size > 1024) return bad("tile_size must be in 8..1024");
   if (!(keep_radius_m > 0.0)) return bad("keep_radius_m must be > 0");
   if (!(max_information > 0.0)) return bad("max_information must be > 0");
+  if (!(obstacle_hit > 0.0) || !(obstacle_miss > 0.0) || !(obstacle_mark_score > 0.0) ||
+      !(obstacle_max_score >= obstacle_mark_score)) {
+    return bad("obstacle scores: need hit, miss and mark > 0 and max_score >= mark_score");
+  }
   return true;
 }
 
@@ -113,12 +117,12 @@ void ElevationMap::updateObstacles(const GroundGrid& w, const std::vector<uint8_
       const size_t si = static_cast<size_t>(i);
       float& s = t->obstacle_score[si];
       if (hit[v]) {
-        s = std::min(options_.obstacle_max_score, s + options_.obstacle_hit);
+        s = static_cast<float>(std::min(options_.obstacle_max_score, s + options_.obstacle_hit));
         if (std::isfinite(height[static_cast<Eigen::Index>(v)])) t->obstacle_height[si] = static_cast<float>(height[static_cast<Eigen::Index>(v)]);
         t->last_update[si] = std::max(t->last_update[si], frame_index);
       } else {
-        s = std::max(-options_.obstacle_max_score, s - options_.obstacle_miss);
-        if (s < options_.obstacle_hit) t->obstacle_height[si] = kNaN;
+        s = static_cast<float>(std::max(-options_.obstacle_max_score, s - options_.obstacle_miss));
+        if (s < options_.obstacle_mark_score) t->obstacle_height[si] = kNaN;
       }
     }
   }
@@ -250,7 +254,7 @@ GroundGrid ElevationMap::knownBounds() const {
     const int tc = static_cast<int>(static_cast<std::int32_t>(kv.first & 0xffffffff));
     for (int i = 0; i < ts * ts; ++i) {
       if (!std::isfinite(kv.second.height[static_cast<size_t>(i)]) &&
-          kv.second.obstacle_score[static_cast<size_t>(i)] < options_.obstacle_hit) {
+          kv.second.obstacle_score[static_cast<size_t>(i)] < options_.obstacle_mark_score) {
         continue;
       }
       const int r = tr * ts + i / ts, c = tc * ts + i % ts;
@@ -277,7 +281,7 @@ cv::Mat ElevationMap::layer(Layer which, const GroundGrid& w) const {
       const Tile* t = tileFor(w.row0 + r, w.col0 + c, &i);
       if (!t) continue;
       const size_t si = static_cast<size_t>(i);
-      const bool obstacle = t->obstacle_score[si] >= options_.obstacle_hit;
+      const bool obstacle = t->obstacle_score[si] >= options_.obstacle_mark_score;
       if (which == Layer::kObstacle) {
         if (obstacle) row[c] = 1.0f;
         else if (std::isfinite(t->height[si])) row[c] = 0.0f;

@@ -933,10 +933,12 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // ---- 5. fuse, advance
   const Eigen::VectorXd fused_prior_info = prob.prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
   map_.fuse(window, state.heights, fused_prior_info, last.vertex_information, update, res.frame_index);
+  const Eigen::Vector3d camera_position = state.camera_T_ground.inverse().translation();
   const ObstacleEvidence oe = ObstacleDetector::evidence(
       window, state.heights, last.vertex_pixels, last.vertex_excluded_pixels,
       obstacles.groundPoints(rig_, state.camera_T_ground.inverse()), so.hidden_pixel_ratio, so.min_ground_pixels,
-      so.obstacles.min_obstacle_height_m, so.obstacles.hidden_body_depth_m);
+      so.obstacles.min_obstacle_height_m, so.obstacles.hidden_body_depth_m, 2,
+      so.obstacles.hidden_body_along_ray ? &camera_position : nullptr);
   map_.updateObstacles(window, oe.hit, oe.ground, oe.height, res.frame_index);
 
   res.obstacle_vertices = static_cast<int>(std::count(oe.hit.begin(), oe.hit.end(), 1));

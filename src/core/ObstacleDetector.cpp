@@ -28,6 +28,7 @@ bool ObstacleDetectorOptions::isValid(std::string* why) const {
   if (!(hidden_body_depth_m >= 0.0) || !(hidden_body_depth_m <= 10.0)) return bad("hidden_body_depth_m must be in [0, 10]");
   if (dilation_px < 0) return bad("dilation_px must be >= 0");
   if (num_threads < 1) return bad("num_threads must be >= 1");
+  if (!(foot_min_ratio > 0.0 && foot_min_ratio <= 1.0)) return bad("foot_min_ratio must be in (0, 1]");
   return true;
 }
 
@@ -52,7 +53,7 @@ ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen:
                                             const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
                                             const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
                                             int min_ground_pixels, double min_height, double body_depth_m,
-                                            int min_points) {
+                                            int min_points, const Eigen::Vector3d* camera_position) {
   const int n = grid.vertexCount();
   ObstacleEvidence ev;
   ev.hit.assign(static_cast<size_t>(n), 0);
@@ -89,7 +90,28 @@ ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen:
   }
   // The body: hidden vertices near a hit one.
   const int reach = static_cast<int>(std::floor(body_depth_m / grid.resolution_m + 1e-9));
-  if (reach > 0) {
+  if (reach > 0 && camera_position) {
+    // ... behind it along the camera's ray (the thing's body beyond its visible face)
+    const std::vector<uint8_t> standing = ev.hit;
+    const double step = 0.25 * grid.resolution_m;
+    for (int r = 0; r < grid.rows; ++r) {
+      for (int c = 0; c < grid.cols; ++c) {
+        if (!standing[static_cast<size_t>(grid.index(r, c))]) continue;
+        const Eigen::Vector2d p(grid.xOfCol(c), grid.yOfRow(r));
+        Eigen::Vector2d dir = p - camera_position->head<2>();
+        if (dir.norm() < 1e-6) continue;
+        dir.normalize();
+        for (double t = step; t <= body_depth_m + 1e-9; t += step) {
+          const Eigen::Vector2d q = p + t * dir;
+          const int qc = static_cast<int>(std::lround(q.x() / grid.resolution_m)) - grid.col0;
+          const int qr = static_cast<int>(std::lround(q.y() / grid.resolution_m)) - grid.row0;
+          if (!grid.contains(qr, qc)) break;
+          const size_t u = static_cast<size_t>(grid.index(qr, qc));
+          if (ev.hidden[u]) ev.hit[u] = 1;
+        }
+      }
+    }
+  } else if (reach > 0) {
     const std::vector<uint8_t> standing = ev.hit;
     for (int r = 0; r < grid.rows; ++r) {
       for (int c = 0; c < grid.cols; ++c) {
@@ -113,7 +135,8 @@ ObstacleDetector::ObstacleDetector(const ObstacleDetectorOptions& options) : opt
 }
 
 namespace {
-constexpr int kHalfStepBelowPx = 10;  ///< test-level disparities below this are swept in half pixels
+constexpr int kHalfStepBelowPx = 10;
+constexpr int kFootSearchRows = 3;   ///< test-level rows below an obstacle run searched for its foot's ground  ///< test-level disparities below this are swept in half pixels
 }  // namespace
 
 ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyramid& right, const StereoRig& rig,
@@ -349,6 +372,50 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
       } else {
         d_obst = 0.0f;
         run = 0;
+      }
+    }
+  }
+  // The depth of an upright thing is where it stands: each column's run of obstacle pixels takes
+  // the ground's disparity just below its lowest pixel (its foot), which the mesh knows well,
+  // instead of its own windows' disparities (a car's plain side panel matches at many
+  // disparities, and a wrong one throws its points metres behind the car). A run whose foot is
+  // not on the ground in view (a car's roof line cut off from its body by a gap in the mask,
+  // something overhanging) takes the foot of the run below it in the column when their
+  // disparities agree, and otherwise keeps its own. Runs are taken bottom-up.
+  if (o.foot_depth) {
+    std::vector<float> run_d;
+    const auto agrees = [&](float a, float b) {
+      return a > 0.0f && a >= o.foot_min_ratio * b && a <= b / o.foot_min_ratio;
+    };
+    for (int u = 0; u < w; ++u) {
+      float below_foot = 0.0f;  // the foot of the run below in this column [level-0 px]
+      for (int v1 = h - 1; v1 >= 0;) {
+        if (!mask.at<uint8_t>(v1, u)) {
+          --v1;
+          continue;
+        }
+        int v0 = v1;
+        while (v0 > 0 && mask.at<uint8_t>(v0 - 1, u)) --v0;
+        run_d.clear();
+        for (int k = v0; k <= v1; ++k) run_d.push_back(out.disparity.at<float>(k, u));
+        std::nth_element(run_d.begin(), run_d.begin() + static_cast<std::ptrdiff_t>(run_d.size() / 2), run_d.end());
+        const float own = run_d[run_d.size() / 2];
+        // The contact is the run's lower edge, between its lowest pixel and the ground pixel
+        // below, where the ground's disparity (linear along a column on a plane) is the mean of
+        // the two; with no ground in the lowest pixel, the first ground pixel within
+        // kFootSearchRows below (the mesh's far edge and the level plane beyond it may leave a
+        // row between them).
+        float foot = 0.0f;  // level-0 px
+        for (int k = v1 + 1; k < h && k <= v1 + kFootSearchRows && !(foot > 0.0f); ++k) foot = dg.at<float>(k, u) * scale;
+        if (foot > 0.0f && v1 + 1 < h && dg.at<float>(v1 + 1, u) > 0.0f && dg.at<float>(v1, u) > 0.0f) {
+          foot = 0.5f * (dg.at<float>(v1, u) + dg.at<float>(v1 + 1, u)) * scale;
+        }
+        if (!agrees(foot, own)) foot = agrees(below_foot, own) ? below_foot : 0.0f;
+        if (foot > 0.0f) {
+          for (int k = v0; k <= v1; ++k) out.disparity.at<float>(k, u) = foot;
+          below_foot = foot;
+        }
+        v1 = v0 - 1;
       }
     }
   }

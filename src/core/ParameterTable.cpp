@@ -110,6 +110,9 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
     "a vertex seen more obliquely than this fraction of level ground's incidence is not observed (0: off)", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
+  b("hidden_body_along_ray", &ob.hidden_body_along_ray,
+    "... only behind the obstacle along the camera's rays (fewer marks on free ground, fewer obstacle cells found)", true);
+  b("obstacle_foot_depth", &ob.foot_depth, "an obstacle stands at the ground below its lowest pixel: its depth from there");
   // failure handling and input checks
   d("max_speed_m_per_s", &e.check.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
   d("max_turn_rate_rad_per_s", &e.check.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);
@@ -151,6 +154,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("map_keep_radius_m", &e.map.keep_radius_m, "map tiles farther from the vehicle are evicted [m]", true);
   i("map_tile_size", &e.map.tile_size, "vertices per map tile side");
   d("map_max_information", &e.map.max_information, "cap on a vertex's information [1/m^2]", true);
+  d("map_obstacle_hit", &e.map.obstacle_hit,
+    "obstacle score a frame's evidence adds (a vertex is an obstacle from 1; 0.6: two frames' evidence)");
   // traversability
   d("critical_slope_rad", &t.critical_slope_rad, "slope giving traversability 0 [rad]", true);
   d("critical_step_m", &t.critical_step_m, "step height giving traversability 0 [m]", true);

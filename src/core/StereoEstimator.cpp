@@ -331,9 +331,11 @@ StereoResult StereoEstimator::estimateWith(const ImagePyramid& left, const Image
   res.information = last.vertex_information;
   res.pixels = last.vertex_pixels;
   res.excluded_pixels = last.vertex_excluded_pixels;
+  const Eigen::Vector3d camera_position = res.ground_T_camera.translation();
   res.obstacle_evidence = ObstacleDetector::evidence(
       res.grid, state.heights, res.pixels, res.excluded_pixels, res.obstacles.groundPoints(rig_, res.ground_T_camera),
-      o.hidden_pixel_ratio, o.min_ground_pixels, o.obstacles.min_obstacle_height_m, o.obstacles.hidden_body_depth_m);
+      o.hidden_pixel_ratio, o.min_ground_pixels, o.obstacles.min_obstacle_height_m, o.obstacles.hidden_body_depth_m, 2,
+      o.obstacles.hidden_body_along_ray ? &camera_position : nullptr);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   res.obstacle = Eigen::VectorXd::Constant(res.grid.vertexCount(), nan);
   res.obstacle_height = res.obstacle_evidence.height;
