@@ -458,6 +458,52 @@ TEST(IncrementalEstimator, MovingShadowsAreTestedAfterTheCoarsestJointLevel) {
   }
 }
 
+// stereo_fine_iterations and repeat_iterations bound the Gauss-Newton iterations of the level
+// without the temporal pairs (level 0) and of the finest temporal level's second run (after the
+// moving-texture test found texture to skip); 0 means fine_iterations. The reports say which pass
+// is which (AlignmentReport::level, motion, heights).
+TEST(IncrementalEstimator, FineIterationsPerPass) {
+  const int n = 4;
+  const auto seq = makePresetSequence(sim::SceneKind::kShadows, n);
+  for (int bounded = 0; bounded < 2; ++bounded) {
+    IncrementalEstimatorOptions o;
+    o.motion_information = false;
+    if (bounded) {
+      o.stereo_fine_iterations = 2;
+      o.repeat_iterations = 1;
+    }
+    IncrementalEstimator est(seq->rig, o);
+    int most_level0 = 0, most_repeat = 0, repeats = 0;
+    for (int k = 0; k < n; ++k) {
+      const sim::RenderedPair p = seq->gen.render(k);
+      const FrameResult r = est.processFrame(p.left.image, p.right.image, seq->gen.frames()[static_cast<size_t>(k)].time_s);
+      if (k == 0) continue;
+      ASSERT_EQ(r.status, FrameStatus::kTracked) << r.message;
+      int joint_level1 = 0;
+      for (const AlignmentReport& a : r.reports) {
+        if (a.level == 0 && a.heights && !a.motion) most_level0 = std::max(most_level0, a.iterations);
+        if (a.level == 1 && a.heights && a.motion && ++joint_level1 == 2) {
+          ++repeats;
+          most_repeat = std::max(most_repeat, a.iterations);
+        }
+      }
+    }
+    EXPECT_GT(repeats, 0) << "the shadows are flagged: level 1 runs twice";
+    if (bounded) {
+      EXPECT_LE(most_level0, 2);
+      EXPECT_LE(most_repeat, 1);
+    } else {
+      EXPECT_EQ(most_level0, o.fine_iterations);
+      EXPECT_EQ(most_repeat, o.fine_iterations);
+    }
+  }
+  IncrementalEstimatorOptions bad;
+  bad.repeat_iterations = -1;
+  std::string why;
+  EXPECT_FALSE(bad.isValid(&why));
+  EXPECT_NE(why.find("repeat_iterations"), std::string::npos) << why;
+}
+
 TEST(IncrementalEstimator, HypothesesAreScreenedWithFewerIterations) {
   // Moving shadows, frames 20-27: the constant-velocity start does not reach the usual cost, so
   // every rotation and scale hypothesis is pre-aligned. Screened (3 of 8 iterations, the winner

@@ -135,8 +135,8 @@ ObstacleDetector::ObstacleDetector(const ObstacleDetectorOptions& options) : opt
 }
 
 namespace {
-constexpr int kHalfStepBelowPx = 10;
-constexpr int kFootSearchRows = 3;   ///< test-level rows below an obstacle run searched for its foot's ground  ///< test-level disparities below this are swept in half pixels
+constexpr int kHalfStepBelowPx = 10;  ///< test-level disparities below this are swept in half pixels
+constexpr int kFootSearchRows = 3;    ///< test-level rows below an obstacle run searched for its foot's ground
 }  // namespace
 
 ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyramid& right, const StereoRig& rig,
