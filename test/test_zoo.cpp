@@ -323,11 +323,23 @@ TEST_P(GappedClip, FirstLongGapFindsTheStep) {
   expectWithin(l, f);
 }
 
-// KITTI raw 0013, every 3rd frame (0.3 s, ~3.6 m per step): the motion search without a velocity
-// took the cheapest step (0.4 m: far ground and everything above it barely change there) and the
-// constant velocity kept it: 124 % drift, 48.8 deg, every frame "tracked". With the local minima of
-// the search as candidates: 1.97 %, 1.36 deg; with prealign_refine_iterations 8 (default): 1.71 %, 1.20 deg (1.73 %, 1.24 deg with min_incidence_ratio 0.1, 2026-12-02). (Every 4th frame, 4.9 m steps: 121 % -> 24 %; from
-// frame 11 on, under the overpass, it locks onto half the step: open, not tested here.)
+// KITTI raw 0013 with only every n-th frame (a node that drops frames; full rate: 1.22 %, 0.42 deg).
+// Every 3rd (0.3 s, ~3.6 m per step): the motion search without a velocity took the cheapest step
+// (0.4 m: far ground and everything above it barely change there) and the constant velocity kept
+// it: 124 % drift, 48.8 deg, every frame "tracked". With the local minima of the search as
+// candidates: 1.97 %, 1.36 deg; with prealign_refine_iterations 8 (default): 1.71 %, 1.20 deg; with
+// the prediction kept when no start moves (below): 1.67 %, 1.13 deg.
+// Every 4th (4.7 m steps): 121 % -> 24-25 % with the search's local minima: under the overpass
+// (frame 11) no pre-alignment start accepts a single Gauss-Newton step, the cheapest initial cost
+// picked the half-step hypothesis and the constant velocity kept it. With the prediction kept when
+// no start moved: 1.86 %, 0.91 deg. Every 2nd: 1.19 %, 0.65 deg (the bound, 1.5x the full
+// rate, is 1.83 %).
+// stride, drift %, rotation deg (measured 2026-12-03)
 INSTANTIATE_TEST_SUITE_P(Kitti, GappedClip,
-                         ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 3, 3.3, 2.3, 1.0, 1.0, 0.5}),
-                         [](const ::testing::TestParamInfo<Limits>&) { return std::string("RawDrive0013Every3rd"); });
+                         ::testing::Values(Limits{"kitti_raw_0926_d0013_f000-079", 2, 1.8, 1.1, 1.0, 1.0, 0.5},
+                                           Limits{"kitti_raw_0926_d0013_f000-079", 3, 3.3, 2.2, 1.0, 1.0, 0.5},
+                                           Limits{"kitti_raw_0926_d0013_f000-079", 4, 3.0, 1.6, 1.0, 1.0, 0.5}),
+                         [](const ::testing::TestParamInfo<Limits>& info) {
+                           return "RawDrive0013Every" + std::to_string(info.param.frames) +
+                                  (info.param.frames == 2 ? "nd" : info.param.frames == 3 ? "rd" : "th");
+                         });

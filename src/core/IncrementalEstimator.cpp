@@ -671,6 +671,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     // Without a velocity (the first tracked frame, after a failure: rare) every start is tried;
     // with one, the first good one ends the search.
     const bool try_all = !predictor_.velocityKnown();
+    // Whether any start's alignment accepted a step, and the first start's result: when none moved
+    // (under an overpass with an earlier frame in the sun, say: no global gain and bias explains
+    // the change, every step raises the cost) the costs compare starting points the images cannot
+    // tell apart, and the prediction is kept rather than the cheapest of them.
+    bool any_moved = false;
+    double first_cost = std::numeric_limits<double>::infinity();
+    SurfaceState first_state;
     for (size_t k = 0; k < starts.size() && (try_all || !good); ++k) {
       if (k == 2 && !anchored_tried) {
         // The constant-velocity starts did not align: the attitude the ground itself shows.
@@ -700,6 +707,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       res.reports.push_back(rep);
       const int samples = rep.valid_pixels + rep.outside_pixels;
       const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
+      any_moved = any_moved || rep.accepted_steps > 0;
+      if (k == 0) {
+        first_cost = cost;
+        first_state.camera_T_ground = s.camera_T_ground;
+        first_state.photometric = photo3;
+        for (size_t i = 0; i < slots.size(); ++i) first_state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
+      }
       // Good enough: the cost per sample near the usual one of good frames (unknown on the first
       // tracked frames: then the first two starts are tried, or all without a velocity).
       const bool usual = prealign_level_ > 0.0 ? cost <= options_.hypothesis_accept_ratio * prealign_level_ : k >= 1;
@@ -712,6 +726,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
         state.photometric = photo3;
         for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
       }
+    }
+    if (!any_moved && predictor_.velocityKnown() && chosen != 0 && std::isfinite(first_cost)) {
+      chosen = 0;
+      best = first_cost;
+      chosen_screened = false;
+      state.camera_T_ground = first_state.camera_T_ground;
+      state.photometric = first_state.photometric;
     }
     // Continues the chosen start with `iterations` more motion-only iterations at pyramid `level`
     // (the window follows the pose); keeps the result when it is sound. Returns its cost per
