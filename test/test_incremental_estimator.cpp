@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
@@ -502,6 +503,23 @@ TEST(IncrementalEstimator, FineIterationsPerPass) {
   std::string why;
   EXPECT_FALSE(bad.isValid(&why));
   EXPECT_NE(why.find("repeat_iterations"), std::string::npos) << why;
+}
+
+TEST(IncrementalEstimator, HypothesisWinRatioIsARatioUpToOne) {
+  // Another pre-alignment start replaces the prediction only below hypothesis_win_ratio x its cost
+  // (the trajectories it changes: test_zoo's NodeFrames); 1 lets any cheaper start win.
+  for (double ok : {0.9, 1.0, 0.05}) {
+    IncrementalEstimatorOptions o;
+    o.hypothesis_win_ratio = ok;
+    EXPECT_TRUE(o.isValid(nullptr)) << ok;
+  }
+  for (double bad : {0.0, -0.5, 1.01, std::numeric_limits<double>::quiet_NaN()}) {
+    IncrementalEstimatorOptions o;
+    o.hypothesis_win_ratio = bad;
+    std::string why;
+    EXPECT_FALSE(o.isValid(&why)) << bad;
+    EXPECT_NE(why.find("hypothesis_win_ratio"), std::string::npos) << why;
+  }
 }
 
 TEST(IncrementalEstimator, HypothesesAreScreenedWithFewerIterations) {

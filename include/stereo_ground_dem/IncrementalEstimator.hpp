@@ -96,6 +96,9 @@ struct IncrementalEstimatorOptions {
   /// A pre-alignment start is good enough when its cost per sample is below this times the usual
   /// one (running over good frames); otherwise the next hypothesis is tried.
   double hypothesis_accept_ratio = 1.3;
+  /// With a velocity, another start replaces the prediction only when its cost per sample after
+  /// pre-alignment is below this times the prediction's (1: any cheaper start wins).
+  double hypothesis_win_ratio = 0.9;
   /// Without a velocity, this many of the best-scoring search poses are aligned.
   int search_candidates = 3;
   /// 0: none; 1: the stereo-only finest level ends with an almost undamped step

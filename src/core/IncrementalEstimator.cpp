@@ -58,8 +58,8 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (rectification_startup_pairs < 0 || rectification_check_period_frames < 0) {
     return bad("rectification_startup_pairs and rectification_check_period_frames must be >= 0");
   }
-  if (!(hypothesis_accept_ratio >= 1.0) || search_candidates < 1) {
-    return bad("need hypothesis_accept_ratio >= 1 and search_candidates >= 1");
+  if (!(hypothesis_accept_ratio >= 1.0) || search_candidates < 1 || !(hypothesis_win_ratio > 0.0 && hypothesis_win_ratio <= 1.0)) {
+    return bad("need hypothesis_accept_ratio >= 1, 0 < hypothesis_win_ratio <= 1 and search_candidates >= 1");
   }
   if (!(motion_search_step_m > 0.0) || !(motion_search_max_m >= motion_search_min_m)) {
     return bad("need motion_search_step_m > 0 and motion_search_max_m >= motion_search_min_m");
@@ -717,7 +717,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       // Good enough: the cost per sample near the usual one of good frames (unknown on the first
       // tracked frames: then the first two starts are tried, or all without a velocity).
       const bool usual = prealign_level_ > 0.0 ? cost <= options_.hypothesis_accept_ratio * prealign_level_ : k >= 1;
-      if (cost < best) {
+      // With a velocity, the prediction is the prior: another start must beat it clearly.
+      const bool wins = try_all || k == 0 || !std::isfinite(first_cost) || cost < options_.hypothesis_win_ratio * first_cost;
+      if (cost < best && wins) {
         good = usual;
         best = cost;
         chosen = k;

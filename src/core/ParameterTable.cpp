@@ -136,6 +136,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("rotation_hypothesis_rad", &e.rotation_hypothesis_rad, "attitude step of the rotation hypotheses [rad]", true);
   d("hypothesis_accept_ratio", &e.hypothesis_accept_ratio,
     "a start is good enough below this times the usual pre-alignment cost", true);
+  d("hypothesis_win_ratio", &e.hypothesis_win_ratio,
+    "with a velocity, another start replaces the prediction only below this times its cost", true);
   d("max_init_std_m", &e.max_init_std_m, "map heights less certain start from the extended surface [m]", true);
   d("motion_max_depth_m", &e.motion_max_depth_m, "levels estimating the motion use vertices up to this depth (0: all) [m]", true);
   i("final_undamped_step", &e.final_undamped_step, "almost undamped last step: 0 none, 1 finest level, 2 fine levels", true);

@@ -172,6 +172,7 @@ void DemNodelet::onInit() {
   worker_ = std::make_unique<DemWorker>(*publisher_, *diagnostics_, pipeline_.estimator, logger, pipeline_.ortho,
                                        pipeline_.residual, pipeline_.attitude);
   worker_->setMemoryRelease(options_.release_memory_every_frames);
+  worker_->setStartHold(options_.start_hold_frames);
   services_ = std::make_unique<DemServices>(*worker_, options_, pipeline_.traversability, getName());
 
   it_ = std::make_shared<image_transport::ImageTransport>(nh);

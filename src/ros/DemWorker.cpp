@@ -289,8 +289,8 @@ void DemWorker::process(StereoFrame& f) {
   // the first frame that arrives meanwhile instead of the newest. With the newest, the first steps
   // spanned 0.5-1 s (an initialization and a motion search take that long) and the motion search,
   // or the prediction from one short step scaled tenfold, missed them (KITTI 06 at 10 Hz: 52-65 %
-  // drift).
-  if (!estimator_->initialized() || !estimator_->velocityKnown()) slot_.holdNext();
+  // drift). So do the first start_hold_frames frames with a velocity (StartHoldPolicy.hpp).
+  if (start_hold_.holdNext(estimator_->initialized(), estimator_->velocityKnown())) slot_.holdNext();
   FrameResult fr;
   try {
     fr = estimator_->processFrame(f.left, f.right, stamp_s, f.order);

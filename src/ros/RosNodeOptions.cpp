@@ -7,7 +7,7 @@ namespace stereo_ground_dem {
 
 const std::vector<std::string>& RosNodeOptions::names() {
   static const std::vector<std::string> kNames = {
-      "queue_size", "approximate_sync", "slop_s", "lazy", "tune_allocator", "release_memory_every_frames", "odom_frame", "base_frame", "camera_frame",
+      "queue_size", "approximate_sync", "slop_s", "lazy", "tune_allocator", "release_memory_every_frames", "start_hold_frames", "odom_frame", "base_frame", "camera_frame",
       "publish_tf", "tf_wait_s", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
       "global_map_max_cells", "mesh_max_triangles", "mesh_colors", "occupancy_unknown_below", "occupancy_min_certainty", "path_max_poses",
       "save_directory", "diagnostic_period_s", "input_check_period_s", "unobserved_std_m", "unobserved_std_rad",
@@ -24,6 +24,7 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("lazy", o.lazy, o.lazy);
   pnh.param("tune_allocator", o.tune_allocator, o.tune_allocator);
   pnh.param("release_memory_every_frames", o.release_memory_every_frames, o.release_memory_every_frames);
+  pnh.param("start_hold_frames", o.start_hold_frames, o.start_hold_frames);
   pnh.param("odom_frame", o.odom_frame, o.odom_frame);
   pnh.param("base_frame", o.base_frame, o.base_frame);
   pnh.param("camera_frame", o.camera_frame, o.camera_frame);
@@ -53,6 +54,7 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   std::vector<std::string> bad;
   if (o.queue_size < 1) bad.push_back("~queue_size must be >= 1");
   if (o.release_memory_every_frames < 0) bad.push_back("~release_memory_every_frames must be >= 0");
+  if (o.start_hold_frames < 0) bad.push_back("~start_hold_frames must be >= 0");
   if (!(o.slop_s > 0.0)) bad.push_back("~slop_s must be > 0");
   if (o.odom_frame.empty()) bad.push_back("~odom_frame must not be empty");
   if (!(o.local_map_size_m > 0.0)) bad.push_back("~local_map_size_m must be > 0");

@@ -21,6 +21,7 @@
 #include "stereo_ground_dem/ros/LatestFrameSlot.hpp"
 #include "stereo_ground_dem/ros/MotionCovariance.hpp"
 #include "stereo_ground_dem/ros/StampSequenceChecker.hpp"
+#include "stereo_ground_dem/ros/StartHoldPolicy.hpp"
 #include "stereo_ground_dem/ros/StereoInputValidator.hpp"
 #include "stereo_ground_dem/ros/TraversabilityCostTable.hpp"
 
@@ -339,6 +340,27 @@ TEST(LatestFrameSlot, HoldsTheFrameAfterAnInitialization) {
   EXPECT_EQ(slot.take(&v), LatestFrameSlot<int>::Taken::kItem);
   EXPECT_EQ(v, 5);
   EXPECT_EQ(slot.puts(), 5);
+}
+
+TEST(StartHoldPolicy, HoldsAfterFramesWithoutVelocityAndTheFirstFewWithOne) {
+  // (initialized, velocity known) before each frame: initializing, first tracked, then tracked
+  // with a velocity; a failure (velocity lost) starts over.
+  StartHoldPolicy two(2);
+  EXPECT_TRUE(two.holdNext(false, false));  // initializes
+  EXPECT_TRUE(two.holdNext(true, false));   // first tracked: motion search
+  EXPECT_TRUE(two.holdNext(true, true));    // velocity from one step
+  EXPECT_TRUE(two.holdNext(true, true));
+  EXPECT_FALSE(two.holdNext(true, true));   // steady: the newest frame
+  EXPECT_FALSE(two.holdNext(true, true));
+  EXPECT_TRUE(two.holdNext(true, false));   // after a failure
+  EXPECT_TRUE(two.holdNext(true, true));
+  EXPECT_TRUE(two.holdNext(true, true));
+  EXPECT_FALSE(two.holdNext(true, true));
+  StartHoldPolicy none(0);  // as before 2026-12-03: only the frames without a velocity
+  EXPECT_TRUE(none.holdNext(false, false));
+  EXPECT_TRUE(none.holdNext(true, false));
+  EXPECT_FALSE(none.holdNext(true, true));
+  EXPECT_TRUE(none.holdNext(false, false));  // a reset
 }
 
 TEST(LatestFrameSlot, KeepsOnlyTheNewest) {

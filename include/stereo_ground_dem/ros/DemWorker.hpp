@@ -25,6 +25,7 @@
 #include "stereo_ground_dem/ros/DemPublisher.hpp"
 #include "stereo_ground_dem/ros/LatestFrameSlot.hpp"
 #include "stereo_ground_dem/ros/MapSnapshot.hpp"
+#include "stereo_ground_dem/ros/StartHoldPolicy.hpp"
 #include "stereo_ground_dem/ros/StereoFrame.hpp"
 
 namespace stereo_ground_dem {
@@ -42,6 +43,9 @@ class DemWorker {
   /// Every `every_frames` processed frames (0: never), hand the allocator's free memory back to
   /// the kernel (AllocatorTuning::releaseFreeMemory). Call before start().
   void setMemoryRelease(int every_frames) { release_every_frames_ = every_frames; }
+  /// Frames processed with a velocity that still hold the frame after them, once tracking starts
+  /// (StartHoldPolicy). Call before start().
+  void setStartHold(int frames_with_velocity) { start_hold_ = StartHoldPolicy(frames_with_velocity); }
 
   void start();
   /// Closes the slot and joins the thread (a frame being processed is finished first).
@@ -110,6 +114,7 @@ class DemWorker {
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   int release_every_frames_ = 0;
+  StartHoldPolicy start_hold_;
   long processed_since_release_ = 0;
   double last_processed_stamp_s_ = -1.0;
 };
