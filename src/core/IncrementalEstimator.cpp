@@ -708,12 +708,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       const int samples = rep.valid_pixels + rep.outside_pixels;
       const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
       any_moved = any_moved || rep.accepted_steps > 0;
-      if (k == 0) {
-        first_cost = cost;
-        first_state.camera_T_ground = s.camera_T_ground;
-        first_state.photometric = photo3;
-        for (size_t i = 0; i < slots.size(); ++i) first_state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
-      }
+      if (k == 0) first_cost = cost;
       // Good enough: the cost per sample near the usual one of good frames (unknown on the first
       // tracked frames: then the first two starts are tried, or all without a velocity).
       const bool usual = prealign_level_ > 0.0 ? cost <= options_.hypothesis_accept_ratio * prealign_level_ : k >= 1;
@@ -728,13 +723,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
         state.photometric = photo3;
         for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
       }
+      if (k == 0) first_state = state;  // a finite first cost always wins (best starts infinite)
     }
     if (!any_moved && predictor_.velocityKnown() && chosen != 0 && std::isfinite(first_cost)) {
       chosen = 0;
       best = first_cost;
       chosen_screened = false;
-      state.camera_T_ground = first_state.camera_T_ground;
-      state.photometric = first_state.photometric;
+      state = first_state;
     }
     // Continues the chosen start with `iterations` more motion-only iterations at pyramid `level`
     // (the window follows the pose); keeps the result when it is sound. Returns its cost per

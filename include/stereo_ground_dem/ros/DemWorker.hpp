@@ -114,8 +114,8 @@ class DemWorker {
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   int release_every_frames_ = 0;
-  StartHoldPolicy start_hold_;
   long processed_since_release_ = 0;
+  StartHoldPolicy start_hold_;
   double last_processed_stamp_s_ = -1.0;
 };
 
