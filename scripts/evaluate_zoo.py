@@ -6,8 +6,8 @@ two clips in ../shared/data: end-point drift, end rotation error, height errors 
 seen within 20 m (median / 95th, synthetic truth) or against the LiDAR reference (raw clip, all
 scored vertices, --pose lidar), coverage, failed frames and the median time per frame.
 
-Usage: scripts/evaluate_zoo.py [--only a,b] [--config FILE] [--frames N] [--scenes DIR] [--out DIR]
-                               [--json FILE] [--bin DIR]
+Usage: scripts/evaluate_zoo.py [--only a,b] [--config FILE] [--frames N] [--seed S] [--scenes DIR]
+                               [--out DIR] [--json FILE] [--bin DIR]
 """
 import argparse
 import json
@@ -48,11 +48,17 @@ def main():
     ap.add_argument("--only", default="", help="comma-separated scene / clip names")
     ap.add_argument("--config", default=os.path.join(REPO, "config", "kitti.yaml"))
     ap.add_argument("--frames", type=int, default=40, help="frames rendered per scene")
-    ap.add_argument("--scenes", default="/tmp/sgd_zoo", help="rendered scenes (made on first use)")
+    ap.add_argument("--seed", type=int, default=1,
+                    help="texture / terrain seed of the rendered scenes (1: the zoo the tests use; others: "
+                         "the same scenes with other terrain and texture, a check on data not tuned on)")
+    ap.add_argument("--scenes", help="rendered scenes (made on first use; default /tmp/sgd_zoo, "
+                    "/tmp/sgd_zoo_seedS for another seed)")
     ap.add_argument("--out", default="/tmp/sgd_zoo_out")
     ap.add_argument("--json", help="write the rows as JSON")
     ap.add_argument("--bin", default=os.path.join(REPO, ".catkin_ws", "devel", "lib", "stereo_ground_dem"))
     a = ap.parse_args()
+    if not a.scenes:
+        a.scenes = "/tmp/sgd_zoo" if a.seed == 1 else f"/tmp/sgd_zoo_seed{a.seed}"
     only = [s for s in a.only.split(",") if s]
     cases = [(n, os.path.join(a.scenes, n)) for n in SCENES] + list(CLIPS.items())
     rows = []
@@ -61,7 +67,8 @@ def main():
         if only and name not in only:
             continue
         if name in SCENES and not os.path.exists(os.path.join(seq, "times.txt")):
-            r = run([os.path.join(a.bin, "sgd_render"), "--scene", name, "--frames", str(a.frames), "--out", seq, "--quiet"])
+            r = run([os.path.join(a.bin, "sgd_render"), "--scene", name, "--frames", str(a.frames), "--seed", str(a.seed),
+                     "--out", seq, "--quiet"])
             if r.returncode != 0:
                 print(f"{name}: sgd_render failed: {r.stderr.strip()}")
                 continue

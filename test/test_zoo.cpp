@@ -161,7 +161,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Limits{"crest", 40, 0.09, 0.24, 1.9, 9.5, 0.97},              // 0.05 0.127 1.00 5.14 0.997 (0.10 0.182 2.82 9.04 without skyline_mask)
                       Limits{"sag", 40, 0.04, 0.055, 0.65, 2.6, 0.97},              // 0.02 0.035 0.44 1.70 0.997
                       Limits{"banked_curve", 40, 0.05, 0.09, 0.5, 2.0, 0.98},       // 0.03 0.055 0.35 1.41 1.00
-                      Limits{"bounce", 40, 0.75, 0.13, 1.4, 3.8, 0.97},             // 0.39 0.068 0.75 1.93 0.998 (1.81 0.460 2.37 6.39 without prealign_refine_iterations)
+                      Limits{"bounce", 40, 0.05, 0.03, 0.45, 2.2, 0.97},            // 0.01 0.004 0.24 1.13 0.998 (0.39 0.068 0.75 1.93 before search_pitch_rad; 1.81 0.460 2.37 6.39 without prealign_refine_iterations)
                       Limits{"tight_curve", 40, 0.07, 0.16, 1.3, 3.8, 0.96},        // 0.05 0.097 0.83 2.41 0.983
                       Limits{"ramp", 40, 0.15, 0.30, 0.7, 90.0, 0.90},              // 0.10 0.213 0.43 59.5 0.937
                       Limits{"rolling", 40, 5.2, 6.0, 1.2, 130.0, 0.90},            // 3.34 3.15 0.73 87.1 0.917 (2.62 3.05 0.72 87.1 before hypothesis_win_ratio 0.9; 5.41 3.10 0.64 113 before the obstacle layer's two-frame rule, 7.82 4.90 2.80 64.3 without skyline_mask)

@@ -37,6 +37,9 @@ struct MotionPredictorOptions {
   double search_max_reverse_m = 1.0;
   /// ... combined with these yaw rates per nominal period (positive turns left) [rad].
   std::vector<double> search_yaw_rad = {0.0, 0.025, -0.025, 0.05, -0.05};
+  /// ... and each translation's best heading pitched by these angles (positive: down), not scaled
+  /// by the gap (a vehicle's pitch does not accumulate) [rad].
+  std::vector<double> search_pitch_rad = {0.02, -0.02, 0.04, -0.04};
   double rotation_step_rad = 0.026;     ///< attitude step of the rotation hypotheses (1.5 deg)
 
   bool isValid(std::string* why) const;

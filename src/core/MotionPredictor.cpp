@@ -18,6 +18,8 @@ bool MotionPredictorOptions::isValid(std::string* why) const {
   if (search_yaw_rad.empty()) return bad("search_yaw_rad needs at least one yaw rate (0)");
   for (double y : search_yaw_rad)
     if (!std::isfinite(y) || std::abs(y) > 0.5) return bad("search_yaw_rad values must be finite and within +-0.5 rad");
+  for (double p : search_pitch_rad)
+    if (!std::isfinite(p) || std::abs(p) > 0.2) return bad("search_pitch_rad values must be finite and within +-0.2 rad");
   if (!(rotation_step_rad > 0.0 && rotation_step_rad < 0.2)) return bad("rotation_step_rad must be in (0, 0.2)");
   return true;
 }
