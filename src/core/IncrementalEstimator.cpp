@@ -370,23 +370,24 @@ std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyr
   GroundGrid window = viewWindow(predictor_.lastPose());
   Eigen::VectorXd heights, info;
   initialHeights(window, predictor_.lastPose(), &heights, &info);
-  std::vector<double> cost(grid.size(), std::numeric_limits<double>::infinity());
-  for (size_t i = 0; i < grid.size(); ++i) {
-    const GroundGrid w = viewWindow(grid[i]);
+  // The photometric cost of a pose per sample (comparable across overlaps); infinite without any.
+  const auto score = [&](const Eigen::Isometry3d& pose) {
+    const GroundGrid w = viewWindow(pose);
     if (!w.sameLayout(window)) {
       window = w;
-      initialHeights(window, grid[i], &heights, &info);
+      initialHeights(window, pose, &heights, &info);
     }
     prob.grid = &window;
     SurfaceState s;
-    s.camera_T_ground = grid[i];
+    s.camera_T_ground = pose;
     s.heights = heights;
-    s.photometric = {statsPhotometric(left, *prev_left_, s.camera_T_ground)};
+    s.photometric = {statsPhotometric(left, *prev_left_, pose)};
     const AlignmentReport rep = aligner.align(prob, s);
     const int samples = rep.valid_pixels + rep.outside_pixels;
-    if (samples == 0) continue;
-    cost[i] = rep.initial_cost / samples;  // per sample: comparable across overlaps
-  }
+    return samples > 0 ? rep.initial_cost / samples : std::numeric_limits<double>::infinity();
+  };
+  std::vector<double> cost(grid.size());
+  for (size_t i = 0; i < grid.size(); ++i) cost[i] = score(grid[i]);
   // The candidates are the local minima of the cost along the step (the cheapest heading at each
   // step), best first, not the best poses overall: those are neighbours of one minimum. Without a
   // velocity and after a long gap, the cheapest step is often near zero: far ground and everything
@@ -413,20 +414,7 @@ std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyr
       Vector6d xi = Vector6d::Zero();
       xi[3] = pitch;
       const Eigen::Isometry3d pose = Se3::exp(xi) * base;
-      const GroundGrid w = viewWindow(pose);
-      if (!w.sameLayout(window)) {
-        window = w;
-        initialHeights(window, pose, &heights, &info);
-      }
-      prob.grid = &window;
-      SurfaceState s;
-      s.camera_T_ground = pose;
-      s.heights = heights;
-      s.photometric = {statsPhotometric(left, *prev_left_, pose)};
-      const AlignmentReport rep = aligner.align(prob, s);
-      const int samples = rep.valid_pixels + rep.outside_pixels;
-      if (samples == 0) continue;
-      const double c = rep.initial_cost / samples;
+      const double c = score(pose);
       if (c < best_of_step[j].first) {
         best_of_step[j] = {c, poses.size()};
         poses.push_back(pose);
