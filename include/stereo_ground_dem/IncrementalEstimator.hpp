@@ -57,6 +57,12 @@ struct IncrementalEstimatorOptions {
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
   int prealign_refine_iterations = 8;     ///< then at the next finer level when the motion surprised (0: never)
+  /// A bound on the camera's acceleration [m/s^2] (0: none): when the pre-alignment of the
+  /// predicted start moves the camera farther than max_acceleration_mps2 * gap^2 from the
+  /// constant-velocity prediction (a 0.5 m change of a 1 m step in 0.1 s would take 50 m/s^2),
+  /// something else pulled it (a car and its shadow, the far end of the view): the joint passes
+  /// start from the prediction. 3 g: above the zoo's roughest drive (rolling, 21 m/s^2).
+  double max_acceleration_mps2 = 30.0;
   /// With a velocity, the rotation and scale hypotheses (not the prediction, the straight step or
   /// the ground-anchored start) are pre-aligned with this many iterations, and the one that wins
   /// gets the rest of prealign_iterations (0 or >= prealign_iterations: all get all). On hard
@@ -147,6 +153,8 @@ struct FrameResult {
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   double joint_ms = 0.0;                 ///< joint levels (heights, motion, photometry) and the consistency test
   double prealign_cost = 0.0;            ///< motion-only pre-alignment cost per sample (best start)
+  double prealign_shift_m = 0.0;         ///< camera position of the pre-alignment minus the prediction's [m]
+  bool prealign_rejected = false;        ///< ... beyond the acceleration bound: the prediction was kept
   int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest

@@ -58,6 +58,9 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (rectification_startup_pairs < 0 || rectification_check_period_frames < 0) {
     return bad("rectification_startup_pairs and rectification_check_period_frames must be >= 0");
   }
+  if (!(max_acceleration_mps2 >= 0.0) || !std::isfinite(max_acceleration_mps2)) {
+    return bad("max_acceleration_mps2 must be finite and >= 0");
+  }
   if (!(hypothesis_accept_ratio >= 1.0) || search_candidates < 1 || !(hypothesis_win_ratio > 0.0 && hypothesis_win_ratio <= 1.0)) {
     return bad("need hypothesis_accept_ratio >= 1, 0 < hypothesis_win_ratio <= 1 and search_candidates >= 1");
   }
@@ -794,6 +797,15 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     const bool surprising = chosen > 0 || !predictor_.velocityKnown() || dt > 1.5 * options_.nominal_frame_period_s;
     if (std::isfinite(best) && surprising && options_.prealign_refine_iterations > 0 && prob.level > 0) {
       continueChosen(options_.prealign_refine_iterations, prob.level - 1);
+    }
+    // A physically impossible change of the predicted motion: something moving pulled the
+    // pre-alignment (the overtaking car and its shadow on the shadows scene, which halved a 1 m
+    // step), and the obstacles detected at that pose would be the wrong ones.
+    res.prealign_shift_m = (state.camera_T_ground.inverse().translation() - predicted.inverse().translation()).norm();
+    if (std::isfinite(best) && chosen == 0 && predictor_.velocityKnown() && options_.max_acceleration_mps2 > 0.0 &&
+        res.prealign_shift_m > options_.max_acceleration_mps2 * dt * dt) {
+      res.prealign_rejected = true;
+      best = std::numeric_limits<double>::infinity();
     }
     if (!std::isfinite(best)) {
       state.camera_T_ground = predicted;

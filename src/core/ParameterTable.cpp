@@ -145,6 +145,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("prealign_iterations", &e.prealign_iterations, "iterations of the motion-only pre-alignment (0: none)", true);
   i("prealign_screen_iterations", &e.prealign_screen_iterations,
     "... of the rotation/scale hypotheses, the winner then gets the rest (0: all get all)", true);
+  d("max_acceleration_mps2", &e.max_acceleration_mps2,
+    "a pre-alignment moving the camera more than this times the gap squared from the prediction is not trusted (0: no bound) [m/s^2]", true);
   i("prealign_refine_iterations", &e.prealign_refine_iterations, "then iterations one pyramid level finer when the motion was not the predicted one (0: never)", true);
   d("max_residual_ratio", &e.check.max_residual_ratio, "median residual above this times the usual: failure", true);
   d("max_residual_increase_grey", &e.check.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
