@@ -607,6 +607,18 @@ TEST(IncrementalEstimator, AccelerationBoundIsFiniteAndNotNegative) {
   }
 }
 
+TEST(IncrementalEstimator, AccelerationBoundScalesWithTheStampGap) {
+  IncrementalEstimatorOptions o;  // 30 m/s^2, nominal period 0.1 s
+  EXPECT_NEAR(o.maxPrealignShiftM(0.1), 0.30, 1e-12);
+  EXPECT_NEAR(o.maxPrealignShiftM(0.3), 2.70, 1e-12);  // two dropped frames: 9x
+  EXPECT_NEAR(o.maxPrealignShiftM(0.001), 0.30, 1e-12) << "a jittered stamp: never below one nominal period's";
+  EXPECT_NEAR(o.maxPrealignShiftM(0.0), 0.30, 1e-12);
+  o.nominal_frame_period_s = 1.0 / 30.0;  // a 30 Hz camera
+  EXPECT_NEAR(o.maxPrealignShiftM(1.0 / 30.0), 30.0 / 900.0, 1e-12);
+  o.max_acceleration_mps2 = 0.0;
+  EXPECT_TRUE(std::isinf(o.maxPrealignShiftM(0.1)));
+}
+
 TEST(IncrementalEstimator, HypothesesAreScreenedWithFewerIterations) {
   // Moving shadows, frames 20-27: the constant-velocity start does not reach the usual cost, so
   // every rotation and scale hypothesis is pre-aligned. Screened (3 of 8 iterations, the winner

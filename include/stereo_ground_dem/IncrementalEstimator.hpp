@@ -13,6 +13,7 @@
 /// re-initialised from the stereo pair alone at the predicted pose.
 
 #include <array>
+#include <limits>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -63,6 +64,9 @@ struct IncrementalEstimatorOptions {
   /// something else pulled it (a car and its shadow, the far end of the view): the joint passes
   /// start from the prediction. 3 g: above the zoo's roughest drive (rolling, 21 m/s^2).
   double max_acceleration_mps2 = 30.0;
+  /// The pre-alignment's largest trusted distance from the prediction after a stamp gap of gap_s:
+  /// max_acceleration_mps2 x max(gap_s, nominal_frame_period_s)^2 [m]; infinite without a bound.
+  double maxPrealignShiftM(double gap_s) const;
   /// With a velocity, the rotation and scale hypotheses (not the prediction, the straight step or
   /// the ground-anchored start) are pre-aligned with this many iterations, and the one that wins
   /// gets the rest of prealign_iterations (0 or >= prealign_iterations: all get all). On hard
@@ -153,7 +157,9 @@ struct FrameResult {
   double obstacle_ms = 0.0;              ///< occlusion reasoning
   double joint_ms = 0.0;                 ///< joint levels (heights, motion, photometry) and the consistency test
   double prealign_cost = 0.0;            ///< motion-only pre-alignment cost per sample (best start)
-  double prealign_shift_m = 0.0;         ///< camera position of the pre-alignment minus the prediction's [m]
+  /// camera position of the pre-alignment minus the prediction's [m] (NaN without a velocity or
+  /// when no start aligned)
+  double prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
   bool prealign_rejected = false;        ///< ... beyond the acceleration bound: the prediction was kept
   int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)

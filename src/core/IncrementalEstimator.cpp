@@ -605,6 +605,14 @@ std::vector<int> pairSlots(bool temporal, bool cross) {
 }
 }  // namespace
 
+double IncrementalEstimatorOptions::maxPrealignShiftM(double gap_s) const {
+  if (!(max_acceleration_mps2 > 0.0)) return std::numeric_limits<double>::infinity();
+  // never tighter than one nominal frame period's: a jittered or wrong stamp a millisecond after
+  // the last one must not reject a sound alignment
+  const double t = std::max(gap_s, nominal_frame_period_s);
+  return max_acceleration_mps2 * t * t;
+}
+
 int IncrementalEstimator::effectiveTemporalFinestLevel(int image_width_px) const {
   int level = options_.temporal_finest_level;
   while (level > 0 && (image_width_px >> level) < options_.min_temporal_width_px) --level;
@@ -801,11 +809,15 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     // A physically impossible change of the predicted motion: something moving pulled the
     // pre-alignment (the overtaking car and its shadow on the shadows scene, which halved a 1 m
     // step), and the obstacles detected at that pose would be the wrong ones.
-    res.prealign_shift_m = (state.camera_T_ground.inverse().translation() - predicted.inverse().translation()).norm();
-    if (std::isfinite(best) && chosen == 0 && predictor_.velocityKnown() && options_.max_acceleration_mps2 > 0.0 &&
-        res.prealign_shift_m > options_.max_acceleration_mps2 * dt * dt) {
-      res.prealign_rejected = true;
-      best = std::numeric_limits<double>::infinity();
+    // (Only where a prediction exists and a start aligned; the cost of a rejected one does not
+    // enter the running level of good frames.)
+    if (std::isfinite(best) && predictor_.velocityKnown()) {
+      res.prealign_shift_m = (state.camera_T_ground.inverse().translation() - predicted.inverse().translation()).norm();
+      if (chosen == 0 && res.prealign_shift_m > options_.maxPrealignShiftM(dt)) {
+        res.prealign_rejected = true;
+        best = std::numeric_limits<double>::infinity();
+        res.prealign_cost = best;
+      }
     }
     if (!std::isfinite(best)) {
       state.camera_T_ground = predicted;
