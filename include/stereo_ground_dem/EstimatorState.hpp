@@ -43,10 +43,13 @@ struct EstimatorState {
   VerticalMisalignment rectification;
   bool rectification_set = false;
   /// The last good frame's level-0 pyramid images (CV_32F grey, 8-bit units, pre-smoothed: the
-  /// pyramid is rebuilt from them without smoothing again), its obstacle masks per level (CV_8U),
-  /// and the last accepted left image (the frozen-frame test).
+  /// pyramid is rebuilt from them without smoothing again), its obstacle and moving-texture masks
+  /// per level (CV_8U; the latter empty when nothing moved), the moving texture it shares with the
+  /// frame before it (carried into the next frame), and the last accepted left image (the
+  /// frozen-frame test).
   cv::Mat previous_left, previous_right;
   std::vector<cv::Mat> previous_obstacles;
+  std::vector<cv::Mat> previous_moving, carried_moving;
   cv::Mat last_left;
 
   /// For a state continued on another clock (a node restarted, a ROS-stamped state continued

@@ -53,6 +53,12 @@ struct IncrementalEstimatorOptions {
   TrackingCheckOptions check;             ///< plausibility tests of a tracked frame
   DisparityPlaneFitOptions ground_plane;  ///< the pair's dominant plane (attitude hypotheses)
   TemporalConsistencyOptions temporal_consistency;  ///< moving texture skipped by the temporal pairs
+  /// Texture that moved with the vehicle (flagged at the same image pixels in the last two frames:
+  /// the shadow of a car driving ahead, the vehicle's own shadow) is skipped by this frame's
+  /// temporal pairs from the start, pre-alignment included: left in until this frame's own test,
+  /// it pulls the pre-alignment and the first joint pass toward standing still, and the test, run
+  /// at the pulled pose, then misses it (docs/results.md, "Texture that moves with the vehicle").
+  bool carry_moving_texture = true;
   SkylineMaskOptions skyline;             ///< the ground's outline against a blank background: skipped by them too
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
@@ -163,6 +169,7 @@ struct FrameResult {
   bool prealign_rejected = false;        ///< ... beyond the acceleration bound: the prediction was kept
   int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
+  int carried_moving_pixels = 0;  ///< ... of the last two frames, skipped from the start (carry_moving_texture)
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
   /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck does not
@@ -260,6 +267,8 @@ class IncrementalEstimator {
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
   double prealign_level_ = 0.0;  ///< running pre-alignment cost per sample of good frames
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
+  std::vector<cv::Mat> prev_moving_;     ///< moving texture of the previous left image, per level (empty: none)
+  std::vector<cv::Mat> carried_moving_;  ///< ... flagged in the frame before it too (empty: none)
   std::vector<cv::Mat> prev_obstacles_;  ///< obstacle pixels of the previous left image, per level
   cv::Mat last_left_level0_;   ///< for the frozen-frame test
   std::array<PhotometricParams, 3> last_photometric_;

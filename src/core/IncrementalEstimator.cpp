@@ -123,6 +123,8 @@ void IncrementalEstimator::reset() {
   prev_left_.reset();
   prev_right_.reset();
   prev_obstacles_.clear();
+  prev_moving_.clear();
+  carried_moving_.clear();
   last_left_level0_.release();
   consecutive_failures_ = 0;
 }
@@ -153,6 +155,8 @@ EstimatorState IncrementalEstimator::state() const {
   if (prev_left_) s.previous_left = prev_left_->level(0).image;
   if (prev_right_) s.previous_right = prev_right_->level(0).image;
   s.previous_obstacles = prev_obstacles_;
+  s.previous_moving = prev_moving_;
+  s.carried_moving = carried_moving_;
   s.last_left = last_left_level0_;
   return s;
 }
@@ -212,6 +216,8 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
   prev_left_ = std::move(pl);
   prev_right_ = std::move(pr);
   prev_obstacles_ = s.previous_obstacles;
+  prev_moving_ = s.previous_moving;
+  carried_moving_ = s.carried_moving;
   last_left_level0_ = s.last_left;
 }
 
@@ -582,6 +588,8 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     residual_level_ = sr.median_abs_residual_grey;
     prealign_level_ = 0.0;
     prev_obstacles_ = sr.obstacles.excluded;
+    prev_moving_.clear();
+    carried_moving_.clear();
     advance(sr.ground_T_camera, stamp_s, pl, pr, {sr.photometric});
     res.status = FrameStatus::kInitialized;
     res.ground_T_camera = sr.ground_T_camera;
@@ -661,7 +669,18 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   prev_r.target_T_ground = stereo_.rightTLeft(stereo_.rectification()) * prev_c_T_g;
   prev_r.row_shift_px = stereo_t.row_shift_px;
   prev_r.excluded = nullptr;  // the previous obstacle mask is in the previous LEFT image
-  // The temporal pairs skip the outline (above), later also the moving texture.
+  // The temporal pairs skip the outline (above), the texture that moved with the vehicle in the
+  // last two frames (carry_moving_texture) and, after the test below, this frame's moving texture.
+  if (options_.carry_moving_texture && carried_moving_.size() == static_cast<size_t>(pl->levels())) {
+    temporal_skipped.resize(carried_moving_.size());
+    for (size_t ml = 0; ml < carried_moving_.size(); ++ml) {
+      if (carried_moving_[ml].size() != pl->level(static_cast<int>(ml)).image.size()) continue;
+      if (temporal_skipped[ml].empty()) temporal_skipped[ml] = carried_moving_[ml].clone();
+      else cv::bitwise_or(temporal_skipped[ml], carried_moving_[ml], temporal_skipped[ml]);
+    }
+    const size_t tl = static_cast<size_t>(std::min(options_.temporal_consistency.level, pl->levels() - 1));
+    res.carried_moving_pixels = cv::countNonZero(carried_moving_[tl]);
+  }
   if (!temporal_skipped.empty()) {
     prev_l.reference_excluded = &temporal_skipped;
     prev_r.reference_excluded = &temporal_skipped;
@@ -1013,6 +1032,16 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   residual_level_ = residual_level_ > 0.0 ? 0.8 * residual_level_ + 0.2 * last.median_abs_residual_grey
                                           : last.median_abs_residual_grey;
   prev_obstacles_ = obstacles.excluded;
+  carried_moving_.clear();
+  if (prev_moving_.size() == moving.masks.size()) {
+    bool any = false;
+    for (size_t ml = 0; ml < moving.masks.size(); ++ml) {
+      carried_moving_.push_back(prev_moving_[ml] & moving.masks[ml]);
+      any = any || cv::countNonZero(carried_moving_.back()) > 0;
+    }
+    if (!any) carried_moving_.clear();
+  }
+  prev_moving_ = moving.masks;
   advance(state.camera_T_ground.inverse(), stamp_s, pl, pr, state.photometric);
   res.status = FrameStatus::kTracked;
   res.ground_T_camera = ground_T_camera_;
@@ -1106,6 +1135,8 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   predictor_.setPose(ground_T_camera.inverse(), stamp_s);
   residual_level_ = sr.median_abs_residual_grey;
   prev_obstacles_ = sr.obstacles.excluded;
+  prev_moving_.clear();
+  carried_moving_.clear();
   advance(ground_T_camera, stamp_s, pl, pr, {sr.photometric});
   res.ground_T_camera = ground_T_camera;
   return res;

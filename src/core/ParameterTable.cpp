@@ -123,6 +123,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
   b("exclude_previous_obstacles", &e.exclude_previous_obstacles,
     "temporal pairs skip samples on the previous frame's obstacle pixels", true);
+  b("carry_moving_texture", &e.carry_moving_texture,
+    "temporal pairs skip the texture flagged as moving at the same pixels in the last two frames (it moves with the vehicle)", true);
   b("skyline_mask", &e.skyline.enabled,
     "temporal pairs skip the ground's outline against a blank background (sky): it moves with the viewpoint", true);
   d("skyline_blank_gradient_grey_per_px", &e.skyline.blank_gradient_grey_per_px,

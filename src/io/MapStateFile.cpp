@@ -99,7 +99,10 @@ void MapStateFile::write(const std::string& directory, const SavedMapState& stat
   for (const char* name : {"previous_left.tif", "previous_right.tif", "last_left.tif", "ortho.bin", "residual.bin"})
     fs::remove(dir / name, ec);
   for (const auto& e : fs::directory_iterator(dir))
-    if (e.path().filename().string().rfind("previous_obstacles_", 0) == 0) fs::remove(e.path(), ec);
+    if (e.path().filename().string().rfind("previous_obstacles_", 0) == 0 ||
+        e.path().filename().string().rfind("previous_moving_", 0) == 0 ||
+        e.path().filename().string().rfind("carried_moving_", 0) == 0)
+      fs::remove(e.path(), ec);
 
   map.saveTiles((dir / "map").string());
   const EstimatorState& s = state.estimator;
@@ -108,6 +111,10 @@ void MapStateFile::write(const std::string& directory, const SavedMapState& stat
   writeImage((dir / "last_left.tif").string(), s.last_left);
   for (size_t l = 0; l < s.previous_obstacles.size(); ++l)
     writeImage((dir / ("previous_obstacles_" + std::to_string(l) + ".png")).string(), s.previous_obstacles[l]);
+  for (size_t l = 0; l < s.previous_moving.size(); ++l)
+    writeImage((dir / ("previous_moving_" + std::to_string(l) + ".png")).string(), s.previous_moving[l]);
+  for (size_t l = 0; l < s.carried_moving.size(); ++l)
+    writeImage((dir / ("carried_moving_" + std::to_string(l) + ".png")).string(), s.carried_moving[l]);
   if (ortho) writeRecord((dir / "ortho.bin").string(), *ortho);
   if (residual) writeRecord((dir / "residual.bin").string(), *residual);
 
@@ -141,6 +148,8 @@ void MapStateFile::write(const std::string& directory, const SavedMapState& stat
   rect[6] = s.rectification.per_disparity;
   fsw << "rectification" << toMat(rect) << "rectification_set" << static_cast<int>(s.rectification_set);
   fsw << "previous_obstacle_levels" << static_cast<int>(s.previous_obstacles.size());
+  fsw << "previous_moving_levels" << static_cast<int>(s.previous_moving.size());
+  fsw << "carried_moving_levels" << static_cast<int>(s.carried_moving.size());
   cv::Mat xy(static_cast<int>(state.trajectory_xy.size()), 2, CV_64F);
   for (int i = 0; i < xy.rows; ++i) {
     xy.at<double>(i, 0) = state.trajectory_xy[static_cast<size_t>(i)].x();
@@ -214,6 +223,11 @@ SavedMapState MapStateFile::read(const std::string& directory, ElevationMap* map
     s.rectification_set = static_cast<int>(f["rectification_set"]) != 0;
     const int levels = f["previous_obstacle_levels"];
     if (levels < 0 || levels > 16) throw std::runtime_error("previous_obstacle_levels out of range");
+    // (absent from states written before 2026-12-04: nothing moving)
+    const int moving_levels = f["previous_moving_levels"].empty() ? 0 : static_cast<int>(f["previous_moving_levels"]);
+    if (moving_levels < 0 || moving_levels > 16) throw std::runtime_error("previous_moving_levels out of range");
+    const int carried_levels = f["carried_moving_levels"].empty() ? 0 : static_cast<int>(f["carried_moving_levels"]);
+    if (carried_levels < 0 || carried_levels > 16) throw std::runtime_error("carried_moving_levels out of range");
     m = readMatrix(f["trajectory_xy"]);
     if (!m.empty() && m.cols != 2) throw std::runtime_error("trajectory_xy is not N x 2");
     for (int i = 0; i < m.rows; ++i) out.trajectory_xy.emplace_back(m.at<double>(i, 0), m.at<double>(i, 1));
@@ -223,6 +237,12 @@ SavedMapState MapStateFile::read(const std::string& directory, ElevationMap* map
     for (int l = 0; l < levels; ++l)
       s.previous_obstacles.push_back(
           readImage((dir / ("previous_obstacles_" + std::to_string(l) + ".png")).string(), CV_8UC1));
+    for (int l = 0; l < moving_levels; ++l)
+      s.previous_moving.push_back(
+          readImage((dir / ("previous_moving_" + std::to_string(l) + ".png")).string(), CV_8UC1));
+    for (int l = 0; l < carried_levels; ++l)
+      s.carried_moving.push_back(
+          readImage((dir / ("carried_moving_" + std::to_string(l) + ".png")).string(), CV_8UC1));
     if (s.initialized && (s.previous_left.empty() || s.previous_right.empty()))
       throw std::runtime_error("previous_left.tif or previous_right.tif is missing");
     if (map) {

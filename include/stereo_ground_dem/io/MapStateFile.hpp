@@ -6,6 +6,8 @@
 ///     state.yaml                        poses, velocity, stamps, levels, rectification, counters
 ///     previous_left.tif, previous_right.tif, last_left.tif   float images (exact)
 ///     previous_obstacles_<level>.png    the previous frame's obstacle pixels
+///     previous_moving_<level>.png       ... its moving texture (none when nothing moved)
+///     carried_moving_<level>.png        ... the part of it flagged in the frame before too
 ///     map/tile_<row>_<col>.bin          the ElevationMap tiles (its archive format)
 ///     ortho.bin, residual.bin           the layers' tiles (when they were given)
 ///
