@@ -335,6 +335,19 @@ TEST(IncrementalEstimator, AMapContinuedFromItsSavedStateEqualsOneRun) {
     EXPECT_NE(std::string(e.what()).find("the calibration"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(other.initialized());
+  // A moving-texture mask lost from the saved directory (read back empty) is refused too, rather
+  // than failing on the first frame that flags moving texture.
+  EstimatorState lost = back.estimator;
+  ASSERT_EQ(lost.carried_moving.size(), 4u);
+  lost.carried_moving[1] = cv::Mat();
+  IncrementalEstimator third(seq->rig, options);
+  try {
+    third.restore(lost);
+    ADD_FAILURE() << "a state with a missing moving-texture mask was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("carried moving-texture mask of level 1"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(third.initialized());
   ElevationMapOptions coarse;
   coarse.resolution_m = 1.0;
   ElevationMap wrong_layout(coarse);

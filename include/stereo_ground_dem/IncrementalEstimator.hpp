@@ -55,7 +55,8 @@ struct IncrementalEstimatorOptions {
   TemporalConsistencyOptions temporal_consistency;  ///< moving texture skipped by the temporal pairs
   /// Texture that moved with the vehicle (flagged at the same image pixels in the last two frames:
   /// the shadow of a car driving ahead, the vehicle's own shadow) is skipped by this frame's
-  /// temporal pairs from the start, pre-alignment included: left in until this frame's own test,
+  /// temporal pairs from the pre-alignment on (the motion search after a failure does not skip
+  /// it; nothing is carried while the test is off): left in until this frame's own test,
   /// it pulls the pre-alignment and the first joint pass toward standing still, and the test, run
   /// at the pulled pose, then misses it (docs/results.md, "Texture that moves with the vehicle").
   bool carry_moving_texture = true;

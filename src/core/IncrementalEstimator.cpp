@@ -198,6 +198,19 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
         m.size() != pl->level(static_cast<int>(l)).image.size())
       fail("obstacle mask of level " + std::to_string(l) + " does not fit the images");
   }
+  // the moving-texture masks: none, or one for every pyramid level
+  for (const auto* masks : {&s.previous_moving, &s.carried_moving}) {
+    if (masks->empty()) continue;
+    const char* what = masks == &s.previous_moving ? "previous moving-texture" : "carried moving-texture";
+    if (!pl || static_cast<int>(masks->size()) != pl->levels())
+      fail(std::string(what) + " masks: " + std::to_string(masks->size()) + " levels for " +
+           std::to_string(pl ? pl->levels() : 0) + " image levels");
+    for (size_t l = 0; l < masks->size(); ++l) {
+      const cv::Mat& m = (*masks)[l];
+      if (m.type() != CV_8UC1 || m.size() != pl->level(static_cast<int>(l)).image.size())
+        fail(std::string(what) + " mask of level " + std::to_string(l) + " does not fit the images");
+    }
+  }
   initialized_ = s.initialized;
   frame_counter_ = s.frame_counter;
   ground_T_camera0_ = s.ground_T_camera0;
@@ -1032,8 +1045,14 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   residual_level_ = residual_level_ > 0.0 ? 0.8 * residual_level_ + 0.2 * last.median_abs_residual_grey
                                           : last.median_abs_residual_grey;
   prev_obstacles_ = obstacles.excluded;
+  // What this frame and the one before both flagged moved with the vehicle (every level of both
+  // sets present and alike in size, else nothing is carried).
   carried_moving_.clear();
-  if (prev_moving_.size() == moving.masks.size()) {
+  bool alike = !moving.masks.empty() && prev_moving_.size() == moving.masks.size();
+  for (size_t ml = 0; alike && ml < moving.masks.size(); ++ml)
+    alike = !moving.masks[ml].empty() && moving.masks[ml].size() == prev_moving_[ml].size() &&
+            moving.masks[ml].type() == prev_moving_[ml].type();
+  if (alike) {
     bool any = false;
     for (size_t ml = 0; ml < moving.masks.size(); ++ml) {
       carried_moving_.push_back(prev_moving_[ml] & moving.masks[ml]);
