@@ -101,6 +101,10 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   last_wait_ms_ = r.wait_ms;
   last_gap_s_ = r.stamp_gap_s;
   if (std::isfinite(r.stamp_gap_s)) max_gap_s_ = std::max(max_gap_s_, r.stamp_gap_s);
+  last_prealign_shift_m_ = r.prealign_shift_m;
+  last_carried_moving_pixels_ = r.carried_moving_pixels;
+  if (r.prealign_rejected) ++counts_.prealign_rejected;
+  if (r.carried_moving_pixels > 0) ++counts_.carried_moving;
   switch (r.status) {
     case FrameStatus::kInitialized: ++counts_.initialized; consecutive_bad_ = 0; break;
     case FrameStatus::kTracked: ++counts_.tracked; consecutive_bad_ = 0; break;
@@ -193,6 +197,10 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("skipped (invalid input)", counts_.skipped);
   stat.add("dropped (busy: replaced by a newer frame)", counts_.dropped);
   stat.add("map restarts", counts_.restarts);
+  stat.add("pre-alignment beyond max_acceleration_mps2 (prediction kept)", counts_.prealign_rejected);
+  stat.add("pre-alignment shift from the prediction last [m]", last_prealign_shift_m_);
+  stat.add("frames skipping moving texture carried from the last two", counts_.carried_moving);
+  stat.add("moving texture carried last [px at the test level]", last_carried_moving_pixels_);
   stat.add("last status", status_);
   stat.add("processing last [ms]", last_ms_);
   stat.add("processing mean [ms]", counts_.processed > 0 ? sum_ms_ / counts_.processed : 0.0);

@@ -13,6 +13,7 @@
 
 #include "stereo_ground_dem/DemParametersConfig.h"
 #include "stereo_ground_dem/ParameterTable.hpp"
+#include "stereo_ground_dem/ros/DemDiagnostics.hpp"
 #include "stereo_ground_dem/ros/HeightGridConverter.hpp"
 #include "stereo_ground_dem/ros/PipelineParameters.hpp"
 #include "stereo_ground_dem/ros/HeightMeshBuilder.hpp"
@@ -468,4 +469,48 @@ TEST(PipelineParameters, ReconfigureOffersExactlyTheTunableParameters) {
   // and the node's copy by name finds every one of them
   PipelineOptions copy;
   EXPECT_TRUE(PipelineParameters::fromConfig(dflt, &copy).empty());
+}
+
+// /diagnostics shows what the estimator's own guards did: pre-alignments beyond the acceleration
+// bound (the prediction kept) and moving texture carried from the last two frames, counted and
+// with the last frame's values; a frame without them resets the last values, not the counts.
+TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
+  DemDiagnostics d("sgd_test", {"L", "LI", "R", "RI"}, false, 0.01);
+  DemDiagnostics::FrameRecord r;
+  r.prealign_shift_m = 0.42;
+  r.prealign_rejected = true;
+  r.carried_moving_pixels = 137;
+  d.processed(r);
+  r.prealign_shift_m = 0.05;
+  r.prealign_rejected = false;
+  r.carried_moving_pixels = 0;
+  d.processed(r);
+  r.prealign_shift_m = 0.61;
+  r.prealign_rejected = true;
+  r.carried_moving_pixels = 12;
+  d.processed(r);
+  const DemDiagnostics::Counts c = d.counts();
+  EXPECT_EQ(c.processed, 3);
+  EXPECT_EQ(c.tracked, 3);
+  EXPECT_EQ(c.prealign_rejected, 2);
+  EXPECT_EQ(c.carried_moving, 2);
+  diagnostic_updater::DiagnosticStatusWrapper stat;
+  d.diagnose(stat);
+  std::map<std::string, std::string> kv;
+  for (const auto& v : stat.values) kv[v.key] = v.value;
+  EXPECT_EQ(kv["pre-alignment beyond max_acceleration_mps2 (prediction kept)"], "2");
+  EXPECT_EQ(std::stod(kv["pre-alignment shift from the prediction last [m]"]), 0.61);
+  EXPECT_EQ(kv["frames skipping moving texture carried from the last two"], "2");
+  EXPECT_EQ(kv["moving texture carried last [px at the test level]"], "12");
+  r.carried_moving_pixels = 0;
+  r.prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
+  r.prealign_rejected = false;
+  d.processed(r);
+  diagnostic_updater::DiagnosticStatusWrapper stat2;
+  d.diagnose(stat2);
+  kv.clear();
+  for (const auto& v : stat2.values) kv[v.key] = v.value;
+  EXPECT_EQ(kv["moving texture carried last [px at the test level]"], "0");
+  EXPECT_EQ(kv["pre-alignment beyond max_acceleration_mps2 (prediction kept)"], "2");
+  EXPECT_EQ(kv["pre-alignment shift from the prediction last [m]"].find("nan"), 0u) << kv["pre-alignment shift from the prediction last [m]"];
 }

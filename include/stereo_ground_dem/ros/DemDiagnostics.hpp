@@ -36,6 +36,12 @@ class DemDiagnostics {
     double map_memory_mb = 0.0;
     std::string map_extent;
     GroundAttitudeEstimate attitude;  ///< the camera above the local ground (mapped frames)
+    /// How far the motion-only pre-alignment moved from the constant-velocity prediction [m]
+    /// (FrameResult::prealign_shift_m; NaN without one) and whether that was beyond the
+    /// acceleration bound, so that the prediction was kept (FrameResult::prealign_rejected).
+    double prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
+    bool prealign_rejected = false;
+    int carried_moving_pixels = 0;  ///< texture moving with the vehicle, skipped from the start (test level)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -75,6 +81,8 @@ class DemDiagnostics {
   struct Counts {
     long synchronized = 0, processed = 0, initialized = 0, tracked = 0, recovered = 0, failed = 0, rejected = 0,
          skipped = 0, dropped = 0, restarts = 0;
+    long prealign_rejected = 0;  ///< frames whose pre-alignment was beyond the acceleration bound
+    long carried_moving = 0;     ///< frames that skipped moving texture carried from the last two
   };
   Counts counts() const;
 
@@ -96,6 +104,8 @@ class DemDiagnostics {
   double last_latency_ms_ = std::numeric_limits<double>::quiet_NaN(), max_latency_ms_ = 0.0;
   double last_wait_ms_ = 0.0;
   double last_gap_s_ = std::numeric_limits<double>::quiet_NaN(), max_gap_s_ = 0.0;
+  double last_prealign_shift_m_ = std::numeric_limits<double>::quiet_NaN();
+  int last_carried_moving_pixels_ = 0;
   std::string status_;
   std::string last_problem_;
   bool last_problem_error_ = false;
