@@ -169,22 +169,36 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     for (int u = 0; u < w; ++u) d[u] = rho[u] > 0.0f ? static_cast<float>(fxb * rho[u]) : 0.0f;
   }
   const cv::Size win(o.window_width_px, o.window_height_px);
+  // Rows without ground (above the horizon) are skipped by both sweeps; the windows of the rows
+  // with ground reach hh rows beyond them (rows without ground add nothing to a ground window).
+  int row0 = h, row1 = -1;
+  for (int v = 0; v < h; ++v) {
+    if (cv::countNonZero(dg.row(v) > 0.0f) > 0) {
+      row0 = std::min(row0, v);
+      row1 = std::max(row1, v);
+    }
+  }
+  if (row1 < row0) return out;
+  const int hw = o.window_width_px / 2, hh = o.window_height_px / 2;
+  const int r0 = std::max(0, row0 - hh), r1 = std::min(h - 1, row1 + hh);
+  const cv::Range rows(r0, r1 + 1);
   const int bands = std::max(1, static_cast<int>(std::ceil(o.ground_band_m / 0.1)));
   // The band offsets k in [k0, k1): the lowest mean |residual| over each pixel's window.
   auto sweepGround = [&](int k0, int k1, cv::Mat* cost) {
     *cost = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
-    cv::Mat res_g(h, w, CV_32F), valid_g(h, w, CV_32F), sum_g, cnt_g;
+    const int n = r1 - r0 + 1;
+    cv::Mat res_g(n, w, CV_32F), valid_g(n, w, CV_32F), sum_g, cnt_g;
     for (int k = k0; k < k1; ++k) {
       const double hk = o.ground_band_m * k / bands;
       const float sc = static_cast<float>(o.camera_height_m / (o.camera_height_m - hk));
       res_g.setTo(0.0f);
       valid_g.setTo(0.0f);
-      for (int v = 0; v < h; ++v) {
+      for (int v = r0; v <= r1; ++v) {
         const float* d = dg.ptr<float>(v);
         const float* lr = l.ptr<float>(v);
         const float* ar = a.ptr<float>(v);
-        float* rg = res_g.ptr<float>(v);
-        float* vg = valid_g.ptr<float>(v);
+        float* rg = res_g.ptr<float>(v - r0);
+        float* vg = valid_g.ptr<float>(v - r0);
         for (int u = 0; u < w; ++u) {
           if (!(d[u] > 0.0f)) continue;
           const float x = static_cast<float>(u) - d[u] * sc;
@@ -197,12 +211,12 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
       }
       cv::boxFilter(res_g, sum_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
       cv::boxFilter(valid_g, cnt_g, CV_32F, win, cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
-      for (int v = 0; v < h; ++v) {
-        const float* s = sum_g.ptr<float>(v);
-        const float* c = cnt_g.ptr<float>(v);
+      for (int v = row0; v <= row1; ++v) {
+        const float* sm = sum_g.ptr<float>(v - r0);
+        const float* c = cnt_g.ptr<float>(v - r0);
         float* cg = cost->ptr<float>(v);
         for (int u = 0; u < w; ++u) {
-          if (c[u] >= 0.5f * win.area()) cg[u] = std::min(cg[u], s[u] / c[u]);
+          if (c[u] >= 0.5f * win.area()) cg[u] = std::min(cg[u], sm[u] / c[u]);
         }
       }
     }
@@ -232,18 +246,6 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     float* t = thr.ptr<float>(v);
     for (int u = 0; u < w; ++u) t[u] = d[u] > 0.0f ? static_cast<float>(d[u] * ratio + o.margin_px) : 1e30f;
   }
-  // Rows without ground (above the horizon) are skipped.
-  int row0 = h, row1 = -1;
-  for (int v = 0; v < h; ++v) {
-    if (cv::countNonZero(dg.row(v) > 0.0f) > 0) {
-      row0 = std::min(row0, v);
-      row1 = std::max(row1, v);
-    }
-  }
-  if (row1 < row0) return out;
-  const int hw = o.window_width_px / 2, hh = o.window_height_px / 2;
-  const int r0 = std::max(0, row0 - hh), r1 = std::min(h - 1, row1 + hh);
-  const cv::Range rows(r0, r1 + 1);
   const float inv_area = 1.0f / static_cast<float>(win.area());
   // Integer disparities, and half-pixel steps where they are small (far obstacles): a window
   // half a pixel off its disparity costs as much as the ground on fine texture.

@@ -208,9 +208,9 @@ cv::Mat SurfaceAligner::renderInverseDepth(const AlignmentProblem& problem, cons
   checkProblem(problem, state);
   SurfaceAlignerOptions o = options_;
   o.estimate_motion = false;
-  o.num_threads = 1;
   AlignmentProblem p = problem;
   p.targets.clear();
+  p.estimate_heights = false;  // only drawn: no smoothness, no height pattern
   SurfaceState s = state;
   s.photometric.clear();
   AlignmentLevel level(o, p, s);
