@@ -240,6 +240,32 @@ class IncrementalEstimator {
   Eigen::Isometry3d predict(double stamp_s) const;
   FrameResult& trackFrame(double stamp_s, FrameResult* res, std::unique_ptr<ImagePyramid>& pl,
                           std::unique_ptr<ImagePyramid>& pr);
+  /// The pre-alignment of a tracked frame (its step 1): motion only at prealign_level against the
+  /// map's surface, from `starts` (the first is the prediction; the ground-anchored start at
+  /// `anchored_index`, or inserted after the constant-velocity ones when they do not align) until
+  /// one aligns about as well as the usual frame. Sets state->camera_T_ground and the three
+  /// photometric slots (the prediction's, with statistics, when nothing aligned or the result
+  /// is implausible), moves the window and its starting heights with the pose, and records the
+  /// alignments and figures in `res`.
+  void prealign(double dt, const ImagePyramid& pl, const ImagePyramid& pr, std::vector<Eigen::Isometry3d> starts,
+                size_t anchored_index, const std::array<AlignerTarget, 3>& targets, const SurfaceAlignerOptions& ao,
+                GroundGrid* window, Eigen::VectorXd* heights, Eigen::VectorXd* information, SurfaceState* state,
+                FrameResult* res);
+  /// Step 3 of a tracked frame: the joint levels, coarse to fine, from the pre-aligned `state`,
+  /// with the temporal-consistency test after the first level with motion (its moving texture
+  /// joins `temporal_skipped`, returned in `moving`). Returns the finest level's report.
+  AlignmentReport alignJointLevels(const ImagePyramid& pl, const ImagePyramid& pr, const GroundGrid& window,
+                                   const ObstacleMask& obstacles, const HeightPrior& prior,
+                                   std::array<AlignerTarget, 3> targets, std::vector<cv::Mat>* temporal_skipped,
+                                   SurfaceAlignerOptions ao, SurfaceState* state, TemporalInconsistency* moving,
+                                   FrameResult* res);
+  /// Step 4 of a tracked frame: which vertices of `window` the finest level's `report` measured
+  /// (enough textured pixels, not seen mostly through obstacles, not at grazing incidence from
+  /// camera_position); counts the well-known ones and those that jumped from `prior_mean`.
+  std::vector<uint8_t> observedVertices(const GroundGrid& window, const Eigen::VectorXd& heights,
+                                        const Eigen::Vector3d& camera_position, const AlignmentReport& report,
+                                        const Eigen::VectorXd& prior_mean, const Eigen::VectorXd& info,
+                                        int* well_known, int* jumps) const;
   FrameResult& recoverFrame(const ImagePyramid& left, const ImagePyramid& right, double stamp_s, FrameResult* res,
                             std::unique_ptr<ImagePyramid>& pl, std::unique_ptr<ImagePyramid>& pr);
   void advance(const Eigen::Isometry3d& ground_T_camera, double stamp_s, std::unique_ptr<ImagePyramid>& pl,
