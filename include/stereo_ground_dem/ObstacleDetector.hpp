@@ -57,6 +57,12 @@ struct ObstacleDetectorOptions {
   /// windows' own disparities (detect()).
   bool foot_depth = true;
   double foot_min_ratio = 0.67;
+  /// Left of column d + half a window the right image does not see what the left one sees at
+  /// disparity d: an obstacle whose leftmost pixels lie at that limit over at least two windows'
+  /// height of rows (a car entering the view from the left) continues to the image's border in
+  /// those rows (detect()). Without it, the part of an overtaking car left of the limit entered
+  /// the temporal pairs (the shadows scene's yaw drift while a car passes).
+  bool continue_at_left_border = true;
   /// Threads of the plane sweeps (the ground bands and the upright disparities are split between
   /// them; the result is the same for any number).
   int num_threads = 1;

@@ -332,6 +332,51 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
       }
     }
   }
+  // Left of column d + hw the right image does not see what the left one sees at disparity d, and
+  // neither hypothesis can be tested there: a thing entering the view from the left (an
+  // overtaking car) is flagged only right of that limit, and the rest of it would enter the
+  // temporal pairs as ground that moves. Rows whose leftmost obstacle pixel lies at the limit of
+  // its own disparity are taken to continue to the image's border, where such rows form a run
+  // (gaps of up to 2 rows) at least two windows tall: a thing, not a few rows of rough ground
+  // flagged at the limit.
+  if (o.continue_at_left_border) {
+    std::vector<int> first(static_cast<size_t>(h), -1);  // the row's leftmost pixel, at the limit
+    for (int v = 0; v < h; ++v) {
+      const uint8_t* m = mask.ptr<uint8_t>(v);
+      const float* od = out.disparity.ptr<float>(v);
+      int u0 = 0;
+      while (u0 < w && !m[u0]) ++u0;
+      if (u0 == 0 || u0 >= w) continue;
+      if (u0 <= static_cast<int>(std::ceil(od[u0] / scale)) + hw + 1) first[static_cast<size_t>(v)] = u0;
+    }
+    const int min_span = 2 * o.window_height_px;
+    for (int v = 0; v < h;) {
+      if (first[static_cast<size_t>(v)] < 0) {
+        ++v;
+        continue;
+      }
+      int end = v, gap = 0;
+      for (int k = v + 1; k < h && gap <= 2; ++k) {
+        if (first[static_cast<size_t>(k)] >= 0) {
+          end = k;
+          gap = 0;
+        } else {
+          ++gap;
+        }
+      }
+      if (end - v + 1 >= min_span) {
+        for (int k = v; k <= end; ++k) {
+          const int u0 = first[static_cast<size_t>(k)];
+          if (u0 < 0) continue;
+          uint8_t* m = mask.ptr<uint8_t>(k);
+          float* od = out.disparity.ptr<float>(k);
+          std::fill(m, m + u0, uint8_t{255});
+          std::fill(od, od + u0, od[u0]);
+        }
+      }
+      v = end + 1;
+    }
+  }
   // An upright obstacle reaches down to where it stands: below a flagged pixel, the column belongs
   // to the obstacle until the ground's disparity reaches the obstacle's (its foot), as long as
   // the upright surface at the obstacle's disparity explains the pixel's window at least as well

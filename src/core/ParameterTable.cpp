@@ -113,6 +113,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   b("hidden_body_along_ray", &ob.hidden_body_along_ray,
     "... only behind the obstacle along the camera's rays (fewer marks on free ground, fewer obstacle cells found)", true);
   b("obstacle_foot_depth", &ob.foot_depth, "an obstacle stands at the ground below its lowest pixel: its depth from there");
+  b("obstacle_continue_at_left_border", &ob.continue_at_left_border,
+    "an obstacle reaching the left limit of the test (what the right image cannot see) over two windows' rows continues to the border");
   // failure handling and input checks
   d("max_speed_m_per_s", &e.check.max_speed_m_per_s, "faster estimated motion is a failure [m/s]", true);
   d("max_turn_rate_rad_per_s", &e.check.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);
