@@ -518,8 +518,10 @@ TEST(IncrementalEstimator, TextureMovingWithTheVehicleIsSkippedFromTheStart) {
               first, n - 1, 100 * error, 100 * error_off, carried_frames, n - first);
   EXPECT_EQ(carried_off, 0);
   EXPECT_EQ(carried_frames, n - first);
-  EXPECT_GT(error_off, 0.45) << "the failure as described (measured 59.7 cm)";
-  EXPECT_LT(error, 0.25);  // measured 17.5 cm
+  // (59.7 / 17.5 cm before obstacle_continue_at_left_border, which flags the part of the
+  // overtaking car the obstacle test cannot see at the left border)
+  EXPECT_GT(error_off, 0.30) << "the failure as described (measured 38.6 cm)";
+  EXPECT_LT(error, 0.20);  // measured 13.5 cm
 }
 
 TEST(IncrementalEstimator, MotionInformationOfTrackedFrames) {
