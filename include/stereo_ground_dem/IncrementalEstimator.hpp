@@ -22,7 +22,9 @@
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/EstimatorState.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
+#include "stereo_ground_dem/MapView.hpp"
 #include "stereo_ground_dem/MotionPredictor.hpp"
+#include "stereo_ground_dem/PoseSearch.hpp"
 #include "stereo_ground_dem/SkylineMask.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TemporalConsistency.hpp"
@@ -233,24 +235,9 @@ class IncrementalEstimator {
 
  private:
   std::string checkImages(const ImagePyramid& left, const ImagePyramid& right) const;
-  void initialHeights(const GroundGrid& window, const Eigen::Isometry3d& camera_T_ground,
-                      Eigen::VectorXd* heights, Eigen::VectorXd* information) const;
-  PhotometricParams statsPhotometric(const ImagePyramid& ref, const ImagePyramid& other,
-                                     const Eigen::Isometry3d& camera_T_ground) const;
   Eigen::Isometry3d predict(double stamp_s) const;
   FrameResult& trackFrame(double stamp_s, FrameResult* res, std::unique_ptr<ImagePyramid>& pl,
                           std::unique_ptr<ImagePyramid>& pr);
-  /// The pre-alignment of a tracked frame (its step 1): motion only at prealign_level against the
-  /// map's surface, from `starts` (the first is the prediction; the ground-anchored start at
-  /// `anchored_index`, or inserted after the constant-velocity ones when they do not align) until
-  /// one aligns about as well as the usual frame. Sets state->camera_T_ground and the three
-  /// photometric slots (the prediction's, with statistics, when nothing aligned or the result
-  /// is implausible), moves the window and its starting heights with the pose, and records the
-  /// alignments and figures in `res`.
-  void prealign(double dt, const ImagePyramid& pl, const ImagePyramid& pr, std::vector<Eigen::Isometry3d> starts,
-                size_t anchored_index, const std::array<AlignerTarget, 3>& targets, const SurfaceAlignerOptions& ao,
-                GroundGrid* window, Eigen::VectorXd* heights, Eigen::VectorXd* information, SurfaceState* state,
-                FrameResult* res);
   /// Step 3 of a tracked frame: the joint levels, coarse to fine, from the pre-aligned `state`,
   /// with the temporal-consistency test after the first level with motion (its moving texture
   /// joins `temporal_skipped`, returned in `moving`). Returns the finest level's report.
@@ -272,13 +259,10 @@ class IncrementalEstimator {
                std::unique_ptr<ImagePyramid>& pr, const std::vector<PhotometricParams>& photometric);
   bool rectificationDue(int frame_index) const;
   void addPairCheck(const StereoPairCheck& check);
-  std::vector<Eigen::Isometry3d> rankedSearch(const ImagePyramid& left, double stamp_s,
-                                              const std::vector<cv::Mat>& skipped) const;
   MotionPredictorOptions predictorOptions() const;
-  /// The pose whose height and attitude above the ground come from the pair's dominant plane
-  /// (DisparityPlaneFit on the sparse matches of `check`) and the map's local plane ahead, with
-  /// position and heading from `guess` (camera_T_ground). False when either plane is missing.
-  bool groundAnchoredPose(const StereoPairCheck& check, const Eigen::Isometry3d& guess, Eigen::Isometry3d* out) const;
+  PoseSearchOptions poseSearchOptions() const;
+  /// The map as the camera sees it (windows, starting heights, the ground-anchored pose).
+  MapView mapView() const;
 
   StereoRig rig_;
   IncrementalEstimatorOptions options_;

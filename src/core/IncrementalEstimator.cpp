@@ -1,4 +1,5 @@
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/PoseSearch.hpp"
 #include "stereo_ground_dem/SurfaceIncidence.hpp"
 
 #include <Eigen/Dense>
@@ -276,247 +277,30 @@ cv::Mat IncrementalEstimator::surfaceDisparity(const Eigen::Isometry3d& ground_T
 }
 
 GroundGrid IncrementalEstimator::viewWindow(const Eigen::Isometry3d& camera_T_ground) const {
-  const StereoEstimatorOptions& s = options_.stereo;
-  const Eigen::Isometry3d g_T_c = camera_T_ground.inverse();
-  const double half_w = std::max(rig_.cx, rig_.width - 1 - rig_.cx) / rig_.fx;
-  double xmin = 1e30, xmax = -1e30, ymin = 1e30, ymax = -1e30;
-  for (double z : {s.min_range_m, s.max_range_m}) {
-    const double lat = std::min(s.max_lateral_m, z * half_w);
-    for (double x : {-lat, 0.0, lat}) {
-      for (double y : {0.0, s.nominal_height_m}) {
-        const Eigen::Vector3d g = g_T_c * Eigen::Vector3d(x, y, z);
-        xmin = std::min(xmin, g.x());
-        xmax = std::max(xmax, g.x());
-        ymin = std::min(ymin, g.y());
-        ymax = std::max(ymax, g.y());
-      }
-    }
-  }
-  const double margin = 2.0;
-  return GroundGrid::covering(xmin - margin, xmax + margin, ymin - margin, ymax + margin, s.grid_resolution_m,
-                              1 << (s.mesh_levels - 1));
+  return mapView().window(camera_T_ground);
 }
 
-void IncrementalEstimator::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camera_T_ground,
-                                          Eigen::VectorXd* heights, Eigen::VectorXd* information) const {
-  map_.sample(w, heights, information);
-  // Weakly known heights (seen by a few pixels at long range) are not trusted as a start: a vertex
-  // that starts far too low hides behind its neighbours and never gets the pixels to correct it.
-  const double min_info = 1.0 / (options_.max_init_std_m * options_.max_init_std_m);
-  int known = 0;
-  for (int v = 0; v < w.vertexCount(); ++v) {
-    if (!std::isfinite((*heights)[v]) || (*information)[v] < min_info) {
-      (*heights)[v] = std::numeric_limits<double>::quiet_NaN();
-      (*information)[v] = 0.0;
-    } else {
-      ++known;
-    }
-  }
-  if (known == w.vertexCount()) return;
-  // Extend the surface: start from a plane fitted to the known heights (or the level plane under
-  // the camera), then relax the unknown heights to the harmonic extension of the known ones
-  // (each the mean of its neighbours; exact for planes), so that a hill or a dip continues.
-  Eigen::Vector3d pqc(0.0, 0.0, camera_T_ground.inverse().translation().z() - options_.stereo.nominal_height_m);
-  if (known >= 20) {
-    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-    for (int v = 0; v < w.vertexCount(); ++v) {
-      if (!std::isfinite((*heights)[v])) continue;
-      const Eigen::Vector2d xy = w.position(v);
-      const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
-      const double wt = std::min((*information)[v], 1e4) + 1.0;
-      ata += wt * a * a.transpose();
-      atb += wt * a * (*heights)[v];
-    }
-    if (ata.determinant() > 1e-9 * std::pow(ata.trace(), 3)) pqc = ata.ldlt().solve(atb);
-  }
-  std::vector<int> todo;
-  for (int v = 0; v < w.vertexCount(); ++v) {
-    if (std::isfinite((*heights)[v])) continue;
-    const Eigen::Vector2d xy = w.position(v);
-    (*heights)[v] = pqc.x() * xy.x() + pqc.y() * xy.y() + pqc.z();
-    todo.push_back(v);
-  }
-  if (known < 20) return;
-  // Gauss-Seidel sweeps over the unknown vertices, each the mean of its (up to four) neighbours,
-  // whose indices are looked up once.
-  std::vector<std::array<int, 4>> neighbours(todo.size());
-  for (size_t i = 0; i < todo.size(); ++i) {
-    const int r = w.rowOf(todo[i]), c = w.colOf(todo[i]);
-    int n = 0;
-    neighbours[i].fill(-1);
-    for (const auto& d : {std::make_pair(0, 1), std::make_pair(0, -1), std::make_pair(1, 0), std::make_pair(-1, 0)}) {
-      if (w.contains(r + d.first, c + d.second)) neighbours[i][static_cast<size_t>(n++)] = w.index(r + d.first, c + d.second);
-    }
-  }
-  double* h = heights->data();
-  for (int sweep = 0; sweep < 60; ++sweep) {
-    for (size_t i = 0; i < todo.size(); ++i) {
-      const std::array<int, 4>& nb = neighbours[i];
-      double sum = 0.0;
-      int n = 0;
-      for (int k = 0; k < 4 && nb[static_cast<size_t>(k)] >= 0; ++k, ++n) sum += h[nb[static_cast<size_t>(k)]];
-      if (n > 0) h[todo[i]] = sum / n;
-    }
-  }
+MapView IncrementalEstimator::mapView() const {
+  return MapView(rig_, options_.stereo, options_.max_init_std_m, options_.ground_plane, map_);
 }
 
-PhotometricParams IncrementalEstimator::statsPhotometric(const ImagePyramid& ref, const ImagePyramid& other,
-                                                         const Eigen::Isometry3d& camera_T_ground) const {
-  return stereo_.initialPhotometric(ref, other, camera_T_ground);
-}
-
-std::vector<Eigen::Isometry3d> IncrementalEstimator::rankedSearch(const ImagePyramid& left, double stamp_s,
-                                                                  const std::vector<cv::Mat>& skipped) const {
-  // Score every pose of the search grid by its photometric cost alone (no iteration) against the
-  // previous left image at the coarsest level; far from the minimum the robust cost is too flat
-  // for Gauss-Newton to walk the whole way (measured on KITTI: it stalls at 0.3 m of a 1.2 m step).
-  const StereoEstimatorOptions& so = options_.stereo;
-  SurfaceAlignerOptions ao = so.alignerOptions();
-  ao.max_iterations = 0;  // cost only
-  ao.estimate_motion = false;
-  const SurfaceAligner aligner(ao);
-  AlignerTarget prev;
-  prev.pyramid = prev_left_.get();
-  prev.rig_fixed = false;
-  prev.target_T_ground = ground_T_camera_.inverse();
-  prev.estimate_photometric = false;
-  if (!skipped.empty()) prev.reference_excluded = &skipped;
-  AlignmentProblem prob;
-  prob.reference = &left;
-  prob.rig = &rig_;
-  prob.level = std::min(so.mesh_levels - 1, left.levels() - 1);
-  prob.targets = {prev};
-  prob.estimate_heights = false;
-  const std::vector<Eigen::Isometry3d> grid = predictor_.searchGrid(stamp_s);
-  GroundGrid window = viewWindow(predictor_.lastPose());
-  Eigen::VectorXd heights, info;
-  initialHeights(window, predictor_.lastPose(), &heights, &info);
-  // The photometric cost of a pose per sample (comparable across overlaps); infinite without any.
-  const auto score = [&](const Eigen::Isometry3d& pose) {
-    const GroundGrid w = viewWindow(pose);
-    if (!w.sameLayout(window)) {
-      window = w;
-      initialHeights(window, pose, &heights, &info);
-    }
-    prob.grid = &window;
-    SurfaceState s;
-    s.camera_T_ground = pose;
-    s.heights = heights;
-    s.photometric = {statsPhotometric(left, *prev_left_, pose)};
-    const AlignmentReport rep = aligner.align(prob, s);
-    const int samples = rep.valid_pixels + rep.outside_pixels;
-    return samples > 0 ? rep.initial_cost / samples : std::numeric_limits<double>::infinity();
-  };
-  std::vector<double> cost(grid.size());
-  for (size_t i = 0; i < grid.size(); ++i) cost[i] = score(grid[i]);
-  // The candidates are the local minima of the cost along the step (the cheapest heading at each
-  // step), best first, not the best poses overall: those are neighbours of one minimum. Without a
-  // velocity and after a long gap, the cheapest step is often near zero: far ground and everything
-  // above it barely change there, while the true step's minimum is only local (KITTI raw 0013,
-  // every 3rd / 4th frame: 3.6 m / 4.9 m steps, the global minimum at 0.4 m). The pre-alignment
-  // of every candidate then picks the one that aligns best.
-  const size_t rows = std::max<size_t>(1, predictor_.options().search_yaw_rad.size());
-  const size_t n = grid.size() / rows;  // searchGrid: yaw-major, steps in increasing order
-  std::vector<std::pair<double, size_t>> best_of_step;  // (cost, index into poses) per step
-  std::vector<Eigen::Isometry3d> poses = grid;
-  for (size_t j = 0; j < n; ++j) {
-    std::pair<double, size_t> b{std::numeric_limits<double>::infinity(), j};
-    for (size_t r = 0; r < rows; ++r) b = std::min(b, std::make_pair(cost[r * n + j], r * n + j));
-    best_of_step.push_back(b);
-  }
-  // The camera's pitch may have changed too (a bump, rough ground: 2-3 deg between frames): a
-  // uniform vertical shift of the image that no forward step explains, so the true step is no
-  // minimum without it (the rendered bouncing drive, seed 2: a 0.7 m step found as 1.6 m). Each
-  // step's best heading is tried pitched by search_pitch_rad as well.
-  for (size_t j = 0; j < n; ++j) {
-    if (!std::isfinite(best_of_step[j].first)) continue;
-    const Eigen::Isometry3d base = poses[best_of_step[j].second];
-    for (double pitch : predictor_.options().search_pitch_rad) {
-      Vector6d xi = Vector6d::Zero();
-      xi[3] = pitch;
-      const Eigen::Isometry3d pose = Se3::exp(xi) * base;
-      const double c = score(pose);
-      if (c < best_of_step[j].first) {
-        best_of_step[j] = {c, poses.size()};
-        poses.push_back(pose);
-      }
-    }
-  }
-  std::vector<std::pair<double, size_t>> minima;
-  for (size_t j = 0; j < n; ++j) {
-    const double c = best_of_step[j].first;
-    if (!std::isfinite(c)) continue;
-    if ((j == 0 || c <= best_of_step[j - 1].first) && (j + 1 == n || c <= best_of_step[j + 1].first)) {
-      minima.push_back(best_of_step[j]);
-    }
-  }
-  std::sort(minima.begin(), minima.end());
-  std::vector<Eigen::Isometry3d> out;
-  for (size_t k = 0; k < minima.size() && static_cast<int>(out.size()) < options_.search_candidates; ++k) {
-    out.push_back(poses[minima[k].second]);
-  }
-  if (out.empty()) out.push_back(predictor_.lastPose());
-  return out;
+PoseSearchOptions IncrementalEstimator::poseSearchOptions() const {
+  PoseSearchOptions p;
+  p.aligner = options_.stereo.alignerOptions();
+  p.search_level = options_.stereo.mesh_levels - 1;
+  p.search_candidates = options_.search_candidates;
+  p.prealign_level = options_.prealign_level;
+  p.prealign_iterations = options_.prealign_iterations;
+  p.prealign_screen_iterations = options_.prealign_screen_iterations;
+  p.prealign_refine_iterations = options_.prealign_refine_iterations;
+  p.hypothesis_accept_ratio = options_.hypothesis_accept_ratio;
+  p.hypothesis_win_ratio = options_.hypothesis_win_ratio;
+  p.nominal_frame_period_s = options_.nominal_frame_period_s;
+  p.use_cross_temporal_pair = options_.use_cross_temporal_pair;
+  return p;
 }
 
 Eigen::Isometry3d IncrementalEstimator::predict(double stamp_s) const { return predictor_.predict(stamp_s); }
-
-bool IncrementalEstimator::groundAnchoredPose(const StereoPairCheck& check, const Eigen::Isometry3d& guess,
-                                              Eigen::Isometry3d* out) const {
-  const DisparityPlane plane = DisparityPlaneFit(options_.ground_plane).fit(check.points, rig_);
-  if (!plane.ok) return false;
-  // The map's plane z = p x + q y + c where the matched ground is: 4-15 m ahead of the guess.
-  const Eigen::Isometry3d g_T_c = guess.inverse();
-  Eigen::Vector3d fwd = g_T_c.linear().col(2);
-  fwd.z() = 0.0;
-  if (fwd.norm() < 1e-6) return false;
-  fwd.normalize();
-  const Eigen::Vector3d left(-fwd.y(), fwd.x(), 0.0);
-  const Eigen::Vector3d c0 = g_T_c.translation();
-  double xmin = 1e30, xmax = -1e30, ymin = 1e30, ymax = -1e30;
-  for (double a : {4.0, 15.0})
-    for (double b : {-6.0, 6.0}) {
-      const Eigen::Vector3d q = c0 + a * fwd + b * left;
-      xmin = std::min(xmin, q.x());
-      xmax = std::max(xmax, q.x());
-      ymin = std::min(ymin, q.y());
-      ymax = std::max(ymax, q.y());
-    }
-  const GroundGrid w = GroundGrid::covering(xmin, xmax, ymin, ymax, options_.stereo.grid_resolution_m);
-  Eigen::VectorXd h, info;
-  map_.sample(w, &h, &info);
-  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-  int known = 0;
-  for (int v = 0; v < w.vertexCount(); ++v) {
-    if (!std::isfinite(h[v])) continue;
-    const Eigen::Vector2d xy = w.position(v);
-    const Eigen::Vector2d rel = xy - c0.head<2>();
-    const double along = rel.dot(fwd.head<2>()), across = rel.dot(left.head<2>());
-    if (along < 4.0 || along > 15.0 || std::abs(across) > 6.0) continue;
-    const Eigen::Vector3d a(xy.x(), xy.y(), 1.0);
-    const double wt = std::min(info[v], 1e4) + 1.0;
-    ata += wt * a * a.transpose();
-    atb += wt * a * h[v];
-    ++known;
-  }
-  Eigen::Vector3d pqc(0.0, 0.0, c0.z() - plane.height_m);  // level, through the guess' ground
-  if (known >= 20 && ata.determinant() > 1e-9 * std::pow(ata.trace(), 3)) pqc = ata.ldlt().solve(atb);
-  const Eigen::Vector3d up_unnormalized(-pqc.x(), -pqc.y(), 1.0);
-  const Eigen::Vector3d up_g = up_unnormalized.normalized();
-  // The smallest rotation of the guess that puts the map's up on the plane's up in the camera.
-  const Eigen::Quaterniond corr = Eigen::Quaterniond::FromTwoVectors(guess.linear() * up_g, -plane.down);
-  const Eigen::Matrix3d r = corr.toRotationMatrix() * guess.linear();
-  // The camera centre over the guess' x, y at the plane's height above the map plane.
-  Eigen::Vector3d c = c0;
-  c.z() = pqc.x() * c.x() + pqc.y() * c.y() + pqc.z() + plane.height_m * up_unnormalized.norm();
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = r;
-  t.translation() = -r * c;
-  *out = t;
-  return t.matrix().allFinite();
-}
 
 FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Mat& right, double stamp_s,
                                                ImagePyramid::ColorOrder order) {
@@ -650,25 +434,33 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // (only the levels the temporal pairs use: the finest temporal level and coarser)
   std::vector<cv::Mat> temporal_skipped = skyline_.compute(*pl, effectiveTemporalFinestLevel(pl->level(0).image.cols));
   // Starting poses: the predictor's hypotheses, or the best of its search grid without a velocity.
-  std::vector<Eigen::Isometry3d> starts;  // modified below: not const
-  size_t anchored_index = std::numeric_limits<size_t>::max();  // where the ground-anchored start is
-  if (predictor_.velocityKnown()) {
-    starts = predictor_.hypotheses(stamp_s);
-  } else {
-    starts = rankedSearch(*pl, stamp_s, temporal_skipped);
-    Eigen::Isometry3d anchored;
-    if (groundAnchoredPose(stereo_.checkPair(*pl, *pr), starts.front(), &anchored)) {
-      starts.insert(starts.begin() + 1, anchored);
-      anchored_index = 1;
-    }
-    for (const Eigen::Isometry3d& p : predictor_.attitudeSteps(starts.front())) starts.push_back(p);
-  }
-  const Eigen::Isometry3d predicted = starts.front();  // camera_T_ground
-  GroundGrid window = viewWindow(predicted);
-  Eigen::VectorXd heights, info;
-  initialHeights(window, predicted, &heights, &info);
-
+  const MapView view = mapView();
   const Eigen::Isometry3d prev_c_T_g = ground_T_camera_.inverse();
+  PoseSearchContext context;
+  context.rig = &rig_;
+  context.stereo = &stereo_;
+  context.map = &view;
+  context.predictor = &predictor_;
+  context.prev_left = prev_left_.get();
+  context.prev_right = prev_right_.get();
+  context.prev_camera_T_ground = prev_c_T_g;
+  const PoseSearch search(poseSearchOptions(), context);
+  PrealignRequest request;
+  request.left = pl.get();
+  request.right = pr.get();
+  if (predictor_.velocityKnown()) {
+    request.starts = predictor_.hypotheses(stamp_s);
+  } else {
+    request.starts = search.rankedStarts(*pl, stamp_s, temporal_skipped);
+    Eigen::Isometry3d anchored;
+    if (view.groundAnchoredPose(stereo_.checkPair(*pl, *pr), request.starts.front(), &anchored)) {
+      request.starts.insert(request.starts.begin() + 1, anchored);
+      request.anchored_index = 1;
+    }
+    for (const Eigen::Isometry3d& p : predictor_.attitudeSteps(request.starts.front())) request.starts.push_back(p);
+  }
+  const Eigen::Isometry3d predicted = request.starts.front();  // camera_T_ground
+
   const AlignerTarget stereo_t = stereo_.stereoTarget(*pr, stereo_.rectification());
   AlignerTarget prev_l;
   prev_l.pyramid = prev_left_.get();
@@ -700,17 +492,27 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   SurfaceAlignerOptions ao = so.alignerOptions();
   ao.estimate_motion = true;
 
-  // ---- 1. motion only, at a coarse level, from the starting poses (prealign())
-  SurfaceState state;
-  state.heights = heights;
+  // ---- 1. motion only, at a coarse level, from the starting poses (PoseSearch::prealign())
   const auto t_pre = std::chrono::steady_clock::now();
-  prealign(dt, *pl, *pr, starts, anchored_index, {stereo_t, prev_l, prev_r}, ao, &window, &heights, &info, &state,
-           &res);
+  request.targets = {stereo_t, prev_l, prev_r};
+  request.gap_s = dt;
+  request.max_shift_m = options_.maxPrealignShiftM(dt);
+  request.usual_cost = prealign_level_;
+  Prealignment pre = search.prealign(std::move(request));
   res.prealign_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_pre).count();
-  const GroundGrid aligned_window = viewWindow(state.camera_T_ground);
+  res.reports.insert(res.reports.end(), pre.reports.begin(), pre.reports.end());
+  res.prealign_cost = pre.cost;
+  res.prealign_shift_m = pre.shift_m;
+  res.prealign_rejected = pre.rejected;
+  SurfaceState state;
+  state.camera_T_ground = pre.camera_T_ground;
+  state.photometric = pre.photometric;
+  GroundGrid window = pre.window;
+  Eigen::VectorXd heights = std::move(pre.heights), info = std::move(pre.information);
+  const GroundGrid aligned_window = view.window(state.camera_T_ground);
   if (!aligned_window.sameLayout(window)) {
     window = aligned_window;
-    initialHeights(window, state.camera_T_ground, &heights, &info);
+    view.initialHeights(window, state.camera_T_ground, &heights, &info);
   }
   state.heights = heights;  // (the starts may have moved the window: these match it)
   res.window = window;
@@ -806,167 +608,6 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   res.status = FrameStatus::kTracked;
   res.ground_T_camera = ground_T_camera_;
   return res;
-}
-
-// 1. Motion only, at a coarse level, against the known surface, from the starting poses in
-// order until one aligns about as well as the usual frame (hypothesis_accept_ratio): a wide
-// basin for sudden pitch and roll changes (a bump, a pothole) that a constant velocity does not
-// predict. The cheapest result is kept.
-void IncrementalEstimator::prealign(double dt, const ImagePyramid& pl, const ImagePyramid& pr,
-                                    std::vector<Eigen::Isometry3d> starts, size_t anchored_index,
-                                    const std::array<AlignerTarget, 3>& targets, const SurfaceAlignerOptions& ao,
-                                    GroundGrid* window_out, Eigen::VectorXd* heights, Eigen::VectorXd* info,
-                                    SurfaceState* state_out, FrameResult* res) {
-  GroundGrid& window = *window_out;
-  SurfaceState& state = *state_out;
-  const Eigen::Isometry3d predicted = starts.front();  // camera_T_ground
-  bool anchored_tried = !predictor_.velocityKnown();
-  SurfaceAlignerOptions pre = ao;
-  pre.max_iterations = options_.prealign_iterations;
-  const SurfaceAligner aligner(pre);
-  // With a velocity, the attitude and scale steps are screened with fewer iterations, and only
-  // a winner among them gets the rest (on hard ground all of them are tried every frame).
-  const int screen_iterations = options_.prealign_screen_iterations;
-  SurfaceAlignerOptions pre_screen = pre;
-  pre_screen.max_iterations = screen_iterations;
-  const SurfaceAligner screen_aligner(pre_screen);
-  bool chosen_screened = false;
-  AlignmentProblem prob;
-  prob.reference = &pl;
-  prob.rig = &rig_;
-  prob.grid = &window;
-  prob.level = std::min(options_.prealign_level, pl.levels() - 1);
-  const std::vector<int> slots = pairSlots(true, options_.use_cross_temporal_pair);
-  for (int sl : slots) prob.targets.push_back(targets[static_cast<size_t>(sl)]);
-  prob.estimate_heights = false;
-  double best = std::numeric_limits<double>::infinity();
-  size_t chosen = 0;
-  bool good = false;
-  // Without a velocity (the first tracked frame, after a failure: rare) every start is tried;
-  // with one, the first good one ends the search.
-  const bool try_all = !predictor_.velocityKnown();
-  // Whether any start's alignment accepted a step, and the first start's result: when none moved
-  // (under an overpass with an earlier frame in the sun, say: no global gain and bias explains
-  // the change, every step raises the cost) the costs compare starting points the images cannot
-  // tell apart, and the prediction is kept rather than the cheapest of them.
-  bool any_moved = false;
-  double first_cost = std::numeric_limits<double>::infinity();
-  SurfaceState first_state;
-  for (size_t k = 0; k < starts.size() && (try_all || !good); ++k) {
-    if (k == 2 && !anchored_tried) {
-      // The constant-velocity starts did not align: the attitude the ground itself shows.
-      anchored_tried = true;
-      Eigen::Isometry3d anchored;
-      if (groundAnchoredPose(stereo_.checkPair(pl, pr), starts[1], &anchored)) {
-        starts.insert(starts.begin() + 2, anchored);
-        anchored_index = 2;
-      }
-    }
-    // A start far from the first (a wrong stamp's unscaled step) sees another part of the map.
-    const GroundGrid start_window = viewWindow(starts[k]);
-    if (!start_window.sameLayout(window)) {
-      window = start_window;
-      initialHeights(window, starts[k], heights, info);
-    }
-    SurfaceState s;
-    s.camera_T_ground = starts[k];
-    s.heights = *heights;
-    const std::vector<PhotometricParams> photo3 = {statsPhotometric(pl, pr, starts[k]),
-                                                   statsPhotometric(pl, *prev_left_, starts[k]),
-                                                   statsPhotometric(pl, *prev_right_, starts[k])};
-    for (int sl : slots) s.photometric.push_back(photo3[static_cast<size_t>(sl)]);
-    const bool screened = screen_iterations > 0 && screen_iterations < pre.max_iterations && !try_all && k >= 2 &&
-                          k != anchored_index;
-    const AlignmentReport rep = (screened ? screen_aligner : aligner).align(prob, s);
-    res->reports.push_back(rep);
-    const int samples = rep.valid_pixels + rep.outside_pixels;
-    const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
-    any_moved = any_moved || rep.accepted_steps > 0;
-    if (k == 0) first_cost = cost;
-    // Good enough: the cost per sample near the usual one of good frames (unknown on the first
-    // tracked frames: then the first two starts are tried, or all without a velocity).
-    const bool usual = prealign_level_ > 0.0 ? cost <= options_.hypothesis_accept_ratio * prealign_level_ : k >= 1;
-    // With a velocity, the prediction is the prior: another start must beat it clearly.
-    const bool wins = try_all || k == 0 || !std::isfinite(first_cost) || cost < options_.hypothesis_win_ratio * first_cost;
-    if (cost < best && wins) {
-      good = usual;
-      best = cost;
-      chosen = k;
-      chosen_screened = screened;
-      state.camera_T_ground = s.camera_T_ground;
-      state.photometric = photo3;
-      for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
-    }
-    if (k == 0) first_state = state;  // a finite first cost always wins (best starts infinite)
-  }
-  if (!any_moved && predictor_.velocityKnown() && chosen != 0 && std::isfinite(first_cost)) {
-    chosen = 0;
-    best = first_cost;
-    chosen_screened = false;
-    state = first_state;
-  }
-  // Continues the chosen start with `iterations` more motion-only iterations at pyramid `level`
-  // (the window follows the pose); keeps the result when it is sound. Returns its cost per
-  // sample, or infinity when it was not kept.
-  const auto continueChosen = [&](int iterations, int level) {
-    const GroundGrid chosen_window = viewWindow(state.camera_T_ground);
-    if (!chosen_window.sameLayout(window)) {
-      window = chosen_window;
-      initialHeights(window, state.camera_T_ground, heights, info);
-    }
-    SurfaceAlignerOptions more = pre;
-    more.max_iterations = iterations;
-    AlignmentProblem at_level = prob;
-    at_level.level = level;
-    SurfaceState s;
-    s.camera_T_ground = state.camera_T_ground;
-    s.heights = *heights;
-    for (int sl : slots) s.photometric.push_back(state.photometric[static_cast<size_t>(sl)]);
-    const AlignmentReport rep = SurfaceAligner(more).align(at_level, s);
-    res->reports.push_back(rep);
-    const int samples = rep.valid_pixels + rep.outside_pixels;
-    if (rep.degenerate || !s.camera_T_ground.matrix().allFinite() || samples <= 0) {
-      return std::numeric_limits<double>::infinity();
-    }
-    state.camera_T_ground = s.camera_T_ground;
-    for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = s.photometric[i];
-    return rep.final_cost / samples;
-  };
-  if (chosen_screened && std::isfinite(best)) {
-    // the winner was screened with fewer iterations: the rest of them now
-    const double continued = continueChosen(pre.max_iterations - screen_iterations, prob.level);
-    if (std::isfinite(continued)) best = continued;
-  }
-  res->prealign_cost = best;
-  // When the motion was not what the constant velocity predicted (another start won, no
-  // velocity was known, or frames were dropped), the chosen start is refined one pyramid level
-  // finer (prealign_refine_iterations, 8; 0: off): the coarse level gives the wide basin that
-  // abrupt attitude changes need, the finer one the precision before the joint levels. Measured
-  // with 8 iterations: the bouncing zoo scene 1.81 -> 0.39 % drift and 0.46 -> 0.07 deg, every
-  // 3rd / 4th frame of a rendered drive 7.4 -> 2.3 cm / 30 -> 9.4 cm. (On 2026-12-01 it made one
-  // KITTI 06 frame land 32 cm long, 1.06 -> 1.42 %; with the tracking of 2026-12-02, 1.05 -> 1.01 %.)
-  const bool surprising = chosen > 0 || !predictor_.velocityKnown() || dt > 1.5 * options_.nominal_frame_period_s;
-  if (std::isfinite(best) && surprising && options_.prealign_refine_iterations > 0 && prob.level > 0) {
-    continueChosen(options_.prealign_refine_iterations, prob.level - 1);
-  }
-  // A physically impossible change of the predicted motion: something moving pulled the
-  // pre-alignment (the overtaking car and its shadow on the shadows scene, which halved a 1 m
-  // step), and the obstacles detected at that pose would be the wrong ones.
-  // (Only where a prediction exists and a start aligned; the cost of a rejected one does not
-  // enter the running level of good frames.)
-  if (std::isfinite(best) && predictor_.velocityKnown()) {
-    res->prealign_shift_m = (state.camera_T_ground.inverse().translation() - predicted.inverse().translation()).norm();
-    if (chosen == 0 && res->prealign_shift_m > options_.maxPrealignShiftM(dt)) {
-      res->prealign_rejected = true;
-      best = std::numeric_limits<double>::infinity();
-      res->prealign_cost = best;
-    }
-  }
-  if (!std::isfinite(best)) {
-    state.camera_T_ground = predicted;
-    state.photometric = {statsPhotometric(pl, pr, predicted), statsPhotometric(pl, *prev_left_, predicted),
-                         statsPhotometric(pl, *prev_right_, predicted)};
-  }
 }
 
 // 3. Heights, motion and photometry jointly, coarse to fine, from the pre-aligned `state`; the
@@ -1168,7 +809,7 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   g_T_local.linear().col(2) = Eigen::Vector3d::UnitZ();
   g_T_local.translation() = Eigen::Vector3d(g_T_c_pred.translation().x(), g_T_c_pred.translation().y(), ground_z);
   Eigen::Isometry3d anchored;
-  if (groundAnchoredPose(sr.pair_check, predicted, &anchored)) g_T_local = anchored.inverse() * sr.ground_T_camera.inverse();
+  if (mapView().groundAnchoredPose(sr.pair_check, predicted, &anchored)) g_T_local = anchored.inverse() * sr.ground_T_camera.inverse();
   const Eigen::Isometry3d ground_T_camera = g_T_local * sr.ground_T_camera;
   // Resample the stereo surface on the map's lattice.
   const GroundGrid window = viewWindow(ground_T_camera.inverse());

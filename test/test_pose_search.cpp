@@ -1,0 +1,241 @@
+// MapView (windows, starting heights, the ground-anchored pose) and PoseSearch (the relocalization
+// without a velocity and the motion-only pre-alignment), each on its own: the map and the
+// previous images come from an IncrementalEstimator run over a rendered drive.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/MapView.hpp"
+#include "stereo_ground_dem/PoseSearch.hpp"
+#include "stereo_ground_dem/Se3.hpp"
+#include "stereo_ground_dem/sim/SequenceGenerator.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// The angle [deg] and translation [m] between two camera_T_ground poses.
+double angleDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd((a * b.inverse()).linear()).angle() * 180.0 / kPi;
+}
+double distanceM(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.inverse().translation() - b.inverse().translation()).norm();
+}
+
+/// A flat road (the standard scene, seed 3) mapped over its frames 0 and 1 by the estimator, and
+/// frame 2 with its true pose in the estimator's ground frame.
+struct MappedDrive {
+  sim::SyntheticScene scene;
+  StereoRig rig;
+  sim::SequenceGenerator gen;
+  IncrementalEstimatorOptions options;
+  std::unique_ptr<IncrementalEstimator> est;
+  ImagePyramid prev_left, prev_right, left, right;
+  Eigen::Isometry3d prev_camera_T_ground, true_camera_T_ground;  // frames 1 and 2, estimator's ground frame
+  double stamp_s = 0.0;
+
+  MappedDrive()
+      : scene(sim::SceneOptions::standard(sim::SceneKind::kFlatRoad, 3)),
+        rig(sim::StereoRenderer::kittiLikeRig(1.0)),
+        gen(scene, rig, [] {
+          sim::SequenceOptions sq;
+          sq.frames = 3;
+          return sq;
+        }()) {
+    est = std::make_unique<IncrementalEstimator>(rig, options);
+    for (int k = 0; k < 2; ++k) {
+      const sim::RenderedPair p = gen.render(k);
+      const FrameResult r = est->processFrame(p.left.image, p.right.image, gen.frames()[static_cast<size_t>(k)].time_s);
+      EXPECT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked) << r.message;
+      if (k == 1) {
+        const StereoEstimator stereo(rig, options.stereo);
+        prev_left = stereo.makePyramid(p.left.image);
+        prev_right = stereo.makePyramid(p.right.image);
+      }
+    }
+    prev_camera_T_ground = est->lastGroundTCamera().inverse();
+    const sim::RenderedPair p = gen.render(2);
+    const StereoEstimator stereo(rig, options.stereo);
+    left = stereo.makePyramid(p.left.image);
+    right = stereo.makePyramid(p.right.image);
+    stamp_s = gen.frames()[2].time_s;
+    // the true step from frame 1 to frame 2, applied to the estimated pose of frame 1
+    const Eigen::Isometry3d c2_T_c1 = gen.frames()[2].ground_T_left.inverse() * gen.frames()[1].ground_T_left;
+    true_camera_T_ground = c2_T_c1 * prev_camera_T_ground;
+  }
+  MapView view() const {
+    return MapView(rig, options.stereo, options.max_init_std_m, options.ground_plane, est->map());
+  }
+};
+
+PoseSearchOptions searchOptions(const IncrementalEstimatorOptions& o) {
+  PoseSearchOptions p;
+  p.aligner = o.stereo.alignerOptions();
+  p.search_level = o.stereo.mesh_levels - 1;
+  return p;
+}
+
+}  // namespace
+
+TEST(MapView, WindowCoversTheWorkingRangeAhead) {
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  const IncrementalEstimatorOptions o;
+  const ElevationMap map;
+  const MapView view(rig, o.stereo, o.max_init_std_m, o.ground_plane, map);
+  // a camera 1.65 m above the origin looking along +x (camera z forward, y down)
+  Eigen::Isometry3d g_T_c = Eigen::Isometry3d::Identity();
+  g_T_c.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  g_T_c.translation() = Eigen::Vector3d(0.0, 0.0, o.stereo.nominal_height_m);
+  const GroundGrid w = view.window(g_T_c.inverse());
+  const Eigen::Vector2d lo = w.position(0), hi = w.position(w.vertexCount() - 1);
+  const double x0 = std::min(lo.x(), hi.x()), x1 = std::max(lo.x(), hi.x());
+  const double y0 = std::min(lo.y(), hi.y()), y1 = std::max(lo.y(), hi.y());
+  // from min_range - 2 m margin to max_range + 2 m, and max_lateral + 2 m to the sides
+  EXPECT_LE(x0, o.stereo.min_range_m - 2.0 + 1e-9);
+  EXPECT_GE(x1, o.stereo.max_range_m + 2.0 - 1e-9);
+  EXPECT_LE(y0, -o.stereo.max_lateral_m - 2.0 + 1e-9);
+  EXPECT_GE(y1, o.stereo.max_lateral_m + 2.0 - 1e-9);
+  // ... and not much more: one coarsest-level cell (8 fine cells of 0.5 m) of rounding per side
+  const double cell = o.stereo.grid_resolution_m * (1 << (o.stereo.mesh_levels - 1));
+  EXPECT_GT(x0, o.stereo.min_range_m - 2.0 - cell - 1e-9);
+  EXPECT_LT(x1, o.stereo.max_range_m + 2.0 + cell + 1e-9);
+}
+
+TEST(MapView, UnknownHeightsContinueTheKnownPlane) {
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  IncrementalEstimatorOptions o;
+  ElevationMapOptions mo;
+  mo.resolution_m = o.stereo.grid_resolution_m;
+  ElevationMap map(mo);
+  // a 4 % grade along x and 1 % across, known (well) on the near half of a 20 x 20 m patch and
+  // poorly (std 0.5 m, above max_init_std_m) on a strip beyond it
+  const GroundGrid known = GroundGrid::covering(4.0, 14.0, -10.0, 10.0, o.stereo.grid_resolution_m);
+  auto plane = [](const Eigen::Vector2d& xy) { return 0.04 * xy.x() + 0.01 * xy.y() - 0.3; };
+  Eigen::VectorXd h(known.vertexCount()), info(known.vertexCount());
+  for (int v = 0; v < known.vertexCount(); ++v) {
+    h[v] = plane(known.position(v));
+    info[v] = known.position(v).x() > 12.0 ? 1.0 / (0.5 * 0.5) : 1e4;
+  }
+  map.fuse(known, h, Eigen::VectorXd::Zero(known.vertexCount()), info,
+           std::vector<uint8_t>(static_cast<size_t>(known.vertexCount()), 1), 0);
+  const MapView view(rig, o.stereo, o.max_init_std_m, o.ground_plane, map);
+  const GroundGrid w = GroundGrid::covering(4.0, 24.0, -10.0, 10.0, o.stereo.grid_resolution_m);
+  Eigen::VectorXd heights, information;
+  view.initialHeights(w, Eigen::Isometry3d::Identity(), &heights, &information);
+  double worst_known = 0.0, worst_near = 0.0, worst = 0.0;
+  int trusted = 0, extended = 0;
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    const Eigen::Vector2d xy = w.position(v);
+    const double e = std::abs(heights[v] - plane(xy));
+    worst = std::max(worst, e);
+    if (xy.x() <= 12.0) worst_known = std::max(worst_known, e);
+    if (xy.x() > 12.0 && xy.x() <= 14.0 && std::abs(xy.y()) < 5.0) worst_near = std::max(worst_near, e);
+    if (information[v] > 0.0) ++trusted;
+    else ++extended;
+    if (xy.x() > 12.25) EXPECT_EQ(information[v], 0.0) << "a poorly known height is not trusted as a start";
+  }
+  EXPECT_EQ(trusted, 17 * 41);  // x = 4 .. 12 m
+  EXPECT_EQ(extended, 24 * 41);
+  EXPECT_LT(worst_known, 1e-6);
+  // The unknown heights start on the plane fitted to the known ones, then relax to the mean of
+  // their neighbours: the plane continues where the known ground ends (measured 1.1 mm within 2 m
+  // of it) and flattens toward the window's free edges (measured 0.156 m at the far corner, 12 m
+  // out, where the plane has risen 0.48 m: a level or a flat continuation would miss by that).
+  EXPECT_LT(worst_near, 0.003);
+  EXPECT_LT(worst, 0.2);
+}
+
+TEST(PoseSearch, RelocalizesWithoutAVelocity) {
+  MappedDrive d;
+  const MapView view = d.view();
+  MotionPredictor predictor;  // no velocity: the last pose only
+  predictor.setPose(d.prev_camera_T_ground, d.gen.frames()[1].time_s);
+  PoseSearchContext c;
+  c.rig = &d.rig;
+  const StereoEstimator stereo(d.rig, d.options.stereo);
+  c.stereo = &stereo;
+  c.map = &view;
+  c.predictor = &predictor;
+  c.prev_left = &d.prev_left;
+  c.prev_right = &d.prev_right;
+  c.prev_camera_T_ground = d.prev_camera_T_ground;
+  const PoseSearch search(searchOptions(d.options), c);
+  const std::vector<Eigen::Isometry3d> starts = search.rankedStarts(d.left, d.stamp_s, {});
+  ASSERT_FALSE(starts.empty());
+  EXPECT_LE(starts.size(), 3u);
+  // the best start is the grid pose nearest the true 1 m step: the step itself (the grid holds
+  // it; its neighbours are 0.2 m away); measured 0.000 m, 0.000 deg, one local minimum
+  EXPECT_LT(distanceM(starts.front(), d.true_camera_T_ground), 0.15);
+  EXPECT_LT(angleDeg(starts.front(), d.true_camera_T_ground), 0.3);
+  // the pre-alignment from it (at level 3, then refined at level 2: no velocity is a surprise):
+  // measured 1.4 mm, 0.008 deg
+  PrealignRequest q;
+  q.left = &d.left;
+  q.right = &d.right;
+  q.starts = starts;
+  q.targets = {stereo.stereoTarget(d.right, stereo.rectification()), AlignerTarget(), AlignerTarget()};
+  q.targets[1].pyramid = &d.prev_left;
+  q.targets[1].rig_fixed = false;
+  q.targets[1].target_T_ground = d.prev_camera_T_ground;
+  q.targets[2] = q.targets[1];
+  q.targets[2].pyramid = &d.prev_right;
+  q.targets[2].target_T_ground = stereo.rightTLeft(stereo.rectification()) * d.prev_camera_T_ground;
+  const Prealignment pre = search.prealign(q);
+  EXPECT_FALSE(pre.rejected);
+  ASSERT_TRUE(std::isfinite(pre.cost));
+  EXPECT_LT(distanceM(pre.camera_T_ground, d.true_camera_T_ground), 0.004);
+  EXPECT_LT(angleDeg(pre.camera_T_ground, d.true_camera_T_ground), 0.02);
+  EXPECT_EQ(pre.photometric.size(), 3u);
+  EXPECT_EQ(pre.heights.size(), pre.window.vertexCount());
+  EXPECT_EQ(pre.reports.size(), starts.size() + 1);  // every start aligned, then the refinement
+}
+
+TEST(PoseSearch, PrealignmentBeyondTheAccelerationBoundKeepsThePrediction) {
+  MappedDrive d;
+  const MapView view = d.view();
+  MotionPredictor predictor;
+  // a velocity of 1 m per frame, so the first start is trusted as the prediction
+  const Eigen::Isometry3d c1_T_c0 = d.gen.frames()[1].ground_T_left.inverse() * d.gen.frames()[0].ground_T_left;
+  predictor.setPose(c1_T_c0.inverse() * d.prev_camera_T_ground, d.gen.frames()[0].time_s);
+  predictor.update(d.prev_camera_T_ground, d.gen.frames()[1].time_s);
+  ASSERT_TRUE(predictor.velocityKnown());
+  const StereoEstimator stereo(d.rig, d.options.stereo);
+  PoseSearchContext c;
+  c.rig = &d.rig;
+  c.stereo = &stereo;
+  c.map = &view;
+  c.predictor = &predictor;
+  c.prev_left = &d.prev_left;
+  c.prev_right = &d.prev_right;
+  c.prev_camera_T_ground = d.prev_camera_T_ground;
+  const PoseSearch search(searchOptions(d.options), c);
+  // a prediction 0.4 m short of the truth: the alignment walks back to the truth, 0.4 m away
+  Vector6d short_step = Vector6d::Zero();
+  short_step[2] = 0.4;  // camera z: along the optical axis
+  const Eigen::Isometry3d predicted = Se3::exp(short_step) * d.true_camera_T_ground;
+  PrealignRequest q;
+  q.left = &d.left;
+  q.right = &d.right;
+  q.starts = {predicted};
+  q.targets = {stereo.stereoTarget(d.right, stereo.rectification()), AlignerTarget(), AlignerTarget()};
+  q.targets[1].pyramid = &d.prev_left;
+  q.targets[1].rig_fixed = false;
+  q.targets[1].target_T_ground = d.prev_camera_T_ground;
+  q.gap_s = 0.1;
+  q.max_shift_m = 10.0;  // no real bound
+  const Prealignment free = search.prealign(q);
+  ASSERT_FALSE(free.rejected);
+  // measured: 0.399 m from the prediction, 4.4 mm and 0.026 deg from the truth
+  EXPECT_NEAR(free.shift_m, 0.4, 0.02);
+  EXPECT_LT(distanceM(free.camera_T_ground, d.true_camera_T_ground), 0.01);
+  EXPECT_LT(angleDeg(free.camera_T_ground, d.true_camera_T_ground), 0.06);
+  q.max_shift_m = 0.2;  // the acceleration bound of 20 m/s^2 over 0.1 s
+  const Prealignment bounded = search.prealign(q);
+  EXPECT_TRUE(bounded.rejected);
+  EXPECT_FALSE(std::isfinite(bounded.cost));
+  EXPECT_LT(distanceM(bounded.camera_T_ground, predicted), 1e-12) << "the prediction is kept";
+}
