@@ -239,3 +239,52 @@ TEST(PoseSearch, PrealignmentBeyondTheAccelerationBoundKeepsThePrediction) {
   EXPECT_FALSE(std::isfinite(bounded.cost));
   EXPECT_LT(distanceM(bounded.camera_T_ground, predicted), 1e-12) << "the prediction is kept";
 }
+
+TEST(PoseSearch, AnotherStartEndingBeyondTheBoundIsNoCandidate) {
+  MappedDrive d;
+  const MapView view = d.view();
+  MotionPredictor predictor;
+  const Eigen::Isometry3d c1_T_c0 = d.gen.frames()[1].ground_T_left.inverse() * d.gen.frames()[0].ground_T_left;
+  predictor.setPose(c1_T_c0.inverse() * d.prev_camera_T_ground, d.gen.frames()[0].time_s);
+  predictor.update(d.prev_camera_T_ground, d.gen.frames()[1].time_s);
+  const StereoEstimator stereo(d.rig, d.options.stereo);
+  PoseSearchContext c;
+  c.rig = &d.rig;
+  c.stereo = &stereo;
+  c.map = &view;
+  c.predictor = &predictor;
+  c.prev_left = &d.prev_left;
+  c.prev_right = &d.prev_right;
+  c.prev_camera_T_ground = d.prev_camera_T_ground;
+  const PoseSearch search(searchOptions(d.options), c);
+  // The prediction 0.4 m short and pitched up 25 deg: it sees no ground (no triangle in view,
+  // infinite cost), as a camera at the bottom of a ditch with the pitch rate extrapolated.
+  Vector6d wrong = Vector6d::Zero();
+  wrong[2] = 0.4;
+  Vector6d up = Vector6d::Zero();
+  up[3] = -25.0 * kPi / 180.0;
+  const Eigen::Isometry3d predicted = Se3::exp(up) * Se3::exp(wrong) * d.true_camera_T_ground;
+  PrealignRequest q;
+  q.left = &d.left;
+  q.right = &d.right;
+  q.starts = {predicted, d.true_camera_T_ground};  // the second: a hypothesis at the truth
+  q.targets = {stereo.stereoTarget(d.right, stereo.rectification()), AlignerTarget(), AlignerTarget()};
+  q.targets[1].pyramid = &d.prev_left;
+  q.targets[1].rig_fixed = false;
+  q.targets[1].target_T_ground = d.prev_camera_T_ground;
+  q.gap_s = 0.1;
+  q.max_shift_m = 10.0;
+  const Prealignment free = search.prealign(q);
+  ASSERT_EQ(free.reports.size(), 3u);  // two starts, then the winner (not the prediction) refined at level 2
+  EXPECT_EQ(free.reports[0].working_triangles, 0) << "the prediction sees no ground";
+  EXPECT_TRUE(std::isfinite(free.cost));
+  EXPECT_EQ(free.discarded, 0);
+  EXPECT_LT(distanceM(free.camera_T_ground, d.true_camera_T_ground), 0.01);
+  // the truth is 0.4 m from the prediction: beyond a 0.2 m bound, the hypothesis is no candidate
+  // and nothing aligned (the joint levels then start from the prediction, and the frame fails)
+  q.max_shift_m = 0.2;
+  const Prealignment bounded = search.prealign(q);
+  EXPECT_EQ(bounded.discarded, 1);
+  EXPECT_FALSE(std::isfinite(bounded.cost));
+  EXPECT_LT(distanceM(bounded.camera_T_ground, predicted), 1e-12);
+}

@@ -71,7 +71,9 @@ struct IncrementalEstimatorOptions {
   /// predicted start moves the camera farther than max_acceleration_mps2 * gap^2 from the
   /// constant-velocity prediction (a 0.5 m change of a 1 m step in 0.1 s would take 50 m/s^2),
   /// something else pulled it (a car and its shadow, the far end of the view): the joint passes
-  /// start from the prediction. 3 g: above the zoo's roughest drive (rolling, 21 m/s^2).
+  /// start from the prediction. 3 g: above the zoo's roughest drive (rolling, 21 m/s^2). The
+  /// other starts' results must end within the same distance of the prediction, or they are no
+  /// candidates (a start that walked the ground out of view: rolling seed 4, frame 18).
   double max_acceleration_mps2 = 30.0;
   /// The pre-alignment's largest trusted distance from the prediction after a stamp gap of gap_s:
   /// max_acceleration_mps2 x max(gap_s, nominal_frame_period_s)^2 [m]; infinite without a bound.
@@ -170,6 +172,7 @@ struct FrameResult {
   /// when no start aligned)
   double prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
   bool prealign_rejected = false;        ///< ... beyond the acceleration bound: the prediction was kept
+  int prealign_discarded = 0;            ///< other starts whose pre-alignment ended beyond that bound
   int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   int carried_moving_pixels = 0;  ///< ... of the last two frames, skipped from the start (carry_moving_texture)

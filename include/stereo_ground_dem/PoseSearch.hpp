@@ -10,7 +10,8 @@
 ///   the coarsest level, without iterating; the local minima along the step, best first.
 /// - prealign(): motion only, at a coarse level, from the starts in order until one aligns about
 ///   as well as the usual frame; refined one level finer when the motion surprised; rejected
-///   when it moved the camera farther from the prediction than an acceleration bound allows.
+///   when it moved the camera farther from the prediction than an acceleration bound allows
+///   (with a velocity, the other starts' results must end within that bound as well).
 ///
 /// A search is made per frame: it holds pointers to the estimator's rig, stereo estimator, map
 /// view, predictor and previous images (PoseSearchContext), which must outlive it.
@@ -88,6 +89,8 @@ struct Prealignment {
   /// distance of the result from the prediction (NaN without a velocity or an aligned start) [m]
   double shift_m = std::numeric_limits<double>::quiet_NaN();
   bool rejected = false;                       ///< beyond max_shift_m: the prediction is used
+  /// other starts whose alignment ended beyond max_shift_m from the prediction (no candidates)
+  int discarded = 0;
 };
 
 class PoseSearch {

@@ -504,6 +504,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   res.prealign_cost = pre.cost;
   res.prealign_shift_m = pre.shift_m;
   res.prealign_rejected = pre.rejected;
+  res.prealign_discarded = pre.discarded;
   SurfaceState state;
   state.camera_T_ground = pre.camera_T_ground;
   state.photometric = pre.photometric;
@@ -562,6 +563,14 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
     predictor_.forgetVelocity();
     res.status = FrameStatus::kFailed;
     res.message = failure;
+    if (!std::isfinite(res.prealign_cost)) {
+      // what the pre-alignment found: the joint levels started from the prediction
+      res.message += res.prealign_rejected ? " (the pre-alignment moved beyond the acceleration bound)"
+                     : res.prealign_discarded > 0
+                         ? " (no pre-alignment start aligned within the acceleration bound: " +
+                               std::to_string(res.prealign_discarded) + " ended beyond it)"
+                         : " (no pre-alignment start aligned)";
+    }
     res.ground_T_camera = predicted.inverse();
     return res;
   }

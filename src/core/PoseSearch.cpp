@@ -207,7 +207,16 @@ Prealignment PoseSearch::prealign(PrealignRequest q) const {
     const AlignmentReport rep = (screened ? screen_aligner : aligner).align(prob, s);
     out.reports.push_back(rep);
     const int samples = rep.valid_pixels + rep.outside_pixels;
-    const double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
+    double cost = samples > 0 ? rep.final_cost / samples : std::numeric_limits<double>::infinity();
+    // With a velocity, another start's alignment must end within the acceleration bound of the
+    // prediction too. The hypotheses are attitude and scale steps around it; one that ends
+    // metres away has walked the ground out of view (a camera pitched up at the bottom of a
+    // ditch, 30 rows of ground: every pixel fewer lowers the cost) and is no candidate.
+    if (predictor.velocityKnown() && k > 0 && std::isfinite(cost) &&
+        (s.camera_T_ground.inverse().translation() - predicted.inverse().translation()).norm() > q.max_shift_m) {
+      cost = std::numeric_limits<double>::infinity();
+      ++out.discarded;
+    }
     any_moved = any_moved || rep.accepted_steps > 0;
     if (k == 0) first_cost = cost;
     // Good enough: the cost per sample near the usual one of good frames (unknown on the first
