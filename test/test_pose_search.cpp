@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <vector>
 
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
 #include "stereo_ground_dem/MapView.hpp"
@@ -66,18 +68,58 @@ struct MappedDrive {
     // the true step from frame 1 to frame 2, applied to the estimated pose of frame 1
     const Eigen::Isometry3d c2_T_c1 = gen.frames()[2].ground_T_left.inverse() * gen.frames()[1].ground_T_left;
     true_camera_T_ground = c2_T_c1 * prev_camera_T_ground;
+    this->stereo = std::make_unique<StereoEstimator>(rig, options.stereo);
+    view = std::make_unique<MapView>(rig, options.stereo, options.max_init_std_m, options.ground_plane, est->map());
   }
-  MapView view() const {
-    return MapView(rig, options.stereo, options.max_init_std_m, options.ground_plane, est->map());
+  /// The predictor after frame 1: without a velocity (relocalization), or with the true one
+  /// (1 m per frame: the first start is the prediction).
+  void setVelocityKnown(bool known) {
+    predictor.reset();
+    if (known) {
+      const Eigen::Isometry3d c1_T_c0 = gen.frames()[1].ground_T_left.inverse() * gen.frames()[0].ground_T_left;
+      predictor.setPose(c1_T_c0.inverse() * prev_camera_T_ground, gen.frames()[0].time_s);
+      predictor.update(prev_camera_T_ground, gen.frames()[1].time_s);
+    } else {
+      predictor.setPose(prev_camera_T_ground, gen.frames()[1].time_s);
+    }
   }
-};
+  /// A search for frame 2 against the map and images of frames 0-1.
+  PoseSearch search() const {
+    PoseSearchContext c;
+    c.rig = &rig;
+    c.stereo = stereo.get();
+    c.map = view.get();
+    c.predictor = &predictor;
+    c.prev_left = &prev_left;
+    c.prev_right = &prev_right;
+    c.prev_camera_T_ground = prev_camera_T_ground;
+    PoseSearchOptions o;
+    o.aligner = options.stereo.alignerOptions();
+    o.search_level = options.stereo.mesh_levels - 1;
+    return PoseSearch(o, c);
+  }
+  /// Frame 2's pre-alignment from `starts` with the three pairs' targets.
+  PrealignRequest request(std::vector<Eigen::Isometry3d> starts, double max_shift_m) const {
+    PrealignRequest q;
+    q.left = &left;
+    q.right = &right;
+    q.starts = std::move(starts);
+    q.targets = {stereo->stereoTarget(right, stereo->rectification()), AlignerTarget(), AlignerTarget()};
+    q.targets[1].pyramid = &prev_left;
+    q.targets[1].rig_fixed = false;
+    q.targets[1].target_T_ground = prev_camera_T_ground;
+    q.targets[2] = q.targets[1];
+    q.targets[2].pyramid = &prev_right;
+    q.targets[2].target_T_ground = stereo->rightTLeft(stereo->rectification()) * prev_camera_T_ground;
+    q.gap_s = gen.frames()[2].time_s - gen.frames()[1].time_s;
+    q.max_shift_m = max_shift_m;
+    return q;
+  }
 
-PoseSearchOptions searchOptions(const IncrementalEstimatorOptions& o) {
-  PoseSearchOptions p;
-  p.aligner = o.stereo.alignerOptions();
-  p.search_level = o.stereo.mesh_levels - 1;
-  return p;
-}
+  std::unique_ptr<StereoEstimator> stereo;
+  std::unique_ptr<MapView> view;
+  MotionPredictor predictor;
+};
 
 }  // namespace
 
@@ -151,19 +193,8 @@ TEST(MapView, UnknownHeightsContinueTheKnownPlane) {
 
 TEST(PoseSearch, RelocalizesWithoutAVelocity) {
   MappedDrive d;
-  const MapView view = d.view();
-  MotionPredictor predictor;  // no velocity: the last pose only
-  predictor.setPose(d.prev_camera_T_ground, d.gen.frames()[1].time_s);
-  PoseSearchContext c;
-  c.rig = &d.rig;
-  const StereoEstimator stereo(d.rig, d.options.stereo);
-  c.stereo = &stereo;
-  c.map = &view;
-  c.predictor = &predictor;
-  c.prev_left = &d.prev_left;
-  c.prev_right = &d.prev_right;
-  c.prev_camera_T_ground = d.prev_camera_T_ground;
-  const PoseSearch search(searchOptions(d.options), c);
+  d.setVelocityKnown(false);
+  const PoseSearch search = d.search();
   const std::vector<Eigen::Isometry3d> starts = search.rankedStarts(d.left, d.stamp_s, {});
   ASSERT_FALSE(starts.empty());
   EXPECT_LE(starts.size(), 3u);
@@ -173,18 +204,7 @@ TEST(PoseSearch, RelocalizesWithoutAVelocity) {
   EXPECT_LT(angleDeg(starts.front(), d.true_camera_T_ground), 0.3);
   // the pre-alignment from it (at level 3, then refined at level 2: no velocity is a surprise):
   // measured 1.4 mm, 0.008 deg
-  PrealignRequest q;
-  q.left = &d.left;
-  q.right = &d.right;
-  q.starts = starts;
-  q.targets = {stereo.stereoTarget(d.right, stereo.rectification()), AlignerTarget(), AlignerTarget()};
-  q.targets[1].pyramid = &d.prev_left;
-  q.targets[1].rig_fixed = false;
-  q.targets[1].target_T_ground = d.prev_camera_T_ground;
-  q.targets[2] = q.targets[1];
-  q.targets[2].pyramid = &d.prev_right;
-  q.targets[2].target_T_ground = stereo.rightTLeft(stereo.rectification()) * d.prev_camera_T_ground;
-  const Prealignment pre = search.prealign(q);
+  const Prealignment pre = search.prealign(d.request(starts, std::numeric_limits<double>::infinity()));
   EXPECT_FALSE(pre.rejected);
   ASSERT_TRUE(std::isfinite(pre.cost));
   EXPECT_LT(distanceM(pre.camera_T_ground, d.true_camera_T_ground), 0.004);
@@ -196,45 +216,21 @@ TEST(PoseSearch, RelocalizesWithoutAVelocity) {
 
 TEST(PoseSearch, PrealignmentBeyondTheAccelerationBoundKeepsThePrediction) {
   MappedDrive d;
-  const MapView view = d.view();
-  MotionPredictor predictor;
-  // a velocity of 1 m per frame, so the first start is trusted as the prediction
-  const Eigen::Isometry3d c1_T_c0 = d.gen.frames()[1].ground_T_left.inverse() * d.gen.frames()[0].ground_T_left;
-  predictor.setPose(c1_T_c0.inverse() * d.prev_camera_T_ground, d.gen.frames()[0].time_s);
-  predictor.update(d.prev_camera_T_ground, d.gen.frames()[1].time_s);
-  ASSERT_TRUE(predictor.velocityKnown());
-  const StereoEstimator stereo(d.rig, d.options.stereo);
-  PoseSearchContext c;
-  c.rig = &d.rig;
-  c.stereo = &stereo;
-  c.map = &view;
-  c.predictor = &predictor;
-  c.prev_left = &d.prev_left;
-  c.prev_right = &d.prev_right;
-  c.prev_camera_T_ground = d.prev_camera_T_ground;
-  const PoseSearch search(searchOptions(d.options), c);
+  d.setVelocityKnown(true);
+  ASSERT_TRUE(d.predictor.velocityKnown());
+  const PoseSearch search = d.search();
   // a prediction 0.4 m short of the truth: the alignment walks back to the truth, 0.4 m away
   Vector6d short_step = Vector6d::Zero();
   short_step[2] = 0.4;  // camera z: along the optical axis
   const Eigen::Isometry3d predicted = Se3::exp(short_step) * d.true_camera_T_ground;
-  PrealignRequest q;
-  q.left = &d.left;
-  q.right = &d.right;
-  q.starts = {predicted};
-  q.targets = {stereo.stereoTarget(d.right, stereo.rectification()), AlignerTarget(), AlignerTarget()};
-  q.targets[1].pyramid = &d.prev_left;
-  q.targets[1].rig_fixed = false;
-  q.targets[1].target_T_ground = d.prev_camera_T_ground;
-  q.gap_s = 0.1;
-  q.max_shift_m = 10.0;  // no real bound
-  const Prealignment free = search.prealign(q);
+  const Prealignment free = search.prealign(d.request({predicted}, 10.0));  // no real bound
   ASSERT_FALSE(free.rejected);
   // measured: 0.399 m from the prediction, 4.4 mm and 0.026 deg from the truth
   EXPECT_NEAR(free.shift_m, 0.4, 0.02);
   EXPECT_LT(distanceM(free.camera_T_ground, d.true_camera_T_ground), 0.01);
   EXPECT_LT(angleDeg(free.camera_T_ground, d.true_camera_T_ground), 0.06);
-  q.max_shift_m = 0.2;  // the acceleration bound of 20 m/s^2 over 0.1 s
-  const Prealignment bounded = search.prealign(q);
+  // the acceleration bound of 20 m/s^2 over 0.1 s
+  const Prealignment bounded = search.prealign(d.request({predicted}, 0.2));
   EXPECT_TRUE(bounded.rejected);
   EXPECT_FALSE(std::isfinite(bounded.cost));
   EXPECT_LT(distanceM(bounded.camera_T_ground, predicted), 1e-12) << "the prediction is kept";
@@ -242,21 +238,8 @@ TEST(PoseSearch, PrealignmentBeyondTheAccelerationBoundKeepsThePrediction) {
 
 TEST(PoseSearch, AnotherStartEndingBeyondTheBoundIsNoCandidate) {
   MappedDrive d;
-  const MapView view = d.view();
-  MotionPredictor predictor;
-  const Eigen::Isometry3d c1_T_c0 = d.gen.frames()[1].ground_T_left.inverse() * d.gen.frames()[0].ground_T_left;
-  predictor.setPose(c1_T_c0.inverse() * d.prev_camera_T_ground, d.gen.frames()[0].time_s);
-  predictor.update(d.prev_camera_T_ground, d.gen.frames()[1].time_s);
-  const StereoEstimator stereo(d.rig, d.options.stereo);
-  PoseSearchContext c;
-  c.rig = &d.rig;
-  c.stereo = &stereo;
-  c.map = &view;
-  c.predictor = &predictor;
-  c.prev_left = &d.prev_left;
-  c.prev_right = &d.prev_right;
-  c.prev_camera_T_ground = d.prev_camera_T_ground;
-  const PoseSearch search(searchOptions(d.options), c);
+  d.setVelocityKnown(true);
+  const PoseSearch search = d.search();
   // The prediction 0.4 m short and pitched up 25 deg: it sees no ground (no triangle in view,
   // infinite cost), as a camera at the bottom of a ditch with the pitch rate extrapolated.
   Vector6d wrong = Vector6d::Zero();
@@ -264,17 +247,8 @@ TEST(PoseSearch, AnotherStartEndingBeyondTheBoundIsNoCandidate) {
   Vector6d up = Vector6d::Zero();
   up[3] = -25.0 * kPi / 180.0;
   const Eigen::Isometry3d predicted = Se3::exp(up) * Se3::exp(wrong) * d.true_camera_T_ground;
-  PrealignRequest q;
-  q.left = &d.left;
-  q.right = &d.right;
-  q.starts = {predicted, d.true_camera_T_ground};  // the second: a hypothesis at the truth
-  q.targets = {stereo.stereoTarget(d.right, stereo.rectification()), AlignerTarget(), AlignerTarget()};
-  q.targets[1].pyramid = &d.prev_left;
-  q.targets[1].rig_fixed = false;
-  q.targets[1].target_T_ground = d.prev_camera_T_ground;
-  q.gap_s = 0.1;
-  q.max_shift_m = 10.0;
-  const Prealignment free = search.prealign(q);
+  // the second start: a hypothesis at the truth
+  const Prealignment free = search.prealign(d.request({predicted, d.true_camera_T_ground}, 10.0));
   ASSERT_EQ(free.reports.size(), 3u);  // two starts, then the winner (not the prediction) refined at level 2
   EXPECT_EQ(free.reports[0].working_triangles, 0) << "the prediction sees no ground";
   EXPECT_TRUE(std::isfinite(free.cost));
@@ -282,8 +256,7 @@ TEST(PoseSearch, AnotherStartEndingBeyondTheBoundIsNoCandidate) {
   EXPECT_LT(distanceM(free.camera_T_ground, d.true_camera_T_ground), 0.01);
   // the truth is 0.4 m from the prediction: beyond a 0.2 m bound, the hypothesis is no candidate
   // and nothing aligned (the joint levels then start from the prediction, and the frame fails)
-  q.max_shift_m = 0.2;
-  const Prealignment bounded = search.prealign(q);
+  const Prealignment bounded = search.prealign(d.request({predicted, d.true_camera_T_ground}, 0.2));
   EXPECT_EQ(bounded.discarded, 1);
   EXPECT_FALSE(std::isfinite(bounded.cost));
   EXPECT_LT(distanceM(bounded.camera_T_ground, predicted), 1e-12);

@@ -32,6 +32,10 @@
 
 namespace stereo_ground_dem {
 
+/// The photometric slots (0 stereo, 1 previous left, 2 previous right) of the pairs in use: the
+/// stereo pair alone, with the previous left image (temporal), and the previous right (cross).
+std::vector<int> pairSlots(bool temporal, bool cross);
+
 /// The IncrementalEstimatorOptions a search uses (documented there under the same names).
 struct PoseSearchOptions {
   SurfaceAlignerOptions aligner;   ///< the stereo options' aligner (motion is switched on or off per step)

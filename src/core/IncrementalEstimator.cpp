@@ -401,15 +401,6 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
   return finish(trackFrame(stamp_s, &res, pl, pr));
 }
 
-namespace {
-/// The photometric slots (0 stereo, 1 previous left, 2 previous right) of the pairs in use.
-std::vector<int> pairSlots(bool temporal, bool cross) {
-  if (!temporal) return {0};
-  if (!cross) return {0, 1};
-  return {0, 1, 2};
-}
-}  // namespace
-
 double IncrementalEstimatorOptions::maxPrealignShiftM(double gap_s) const {
   if (!(max_acceleration_mps2 > 0.0)) return std::numeric_limits<double>::infinity();
   // never tighter than one nominal frame period's: a jittered or wrong stamp a millisecond after

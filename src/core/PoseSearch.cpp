@@ -10,14 +10,11 @@
 
 namespace stereo_ground_dem {
 
-namespace {
-/// The photometric slots (0 stereo, 1 previous left, 2 previous right) of the pairs in use.
 std::vector<int> pairSlots(bool temporal, bool cross) {
   if (!temporal) return {0};
   if (!cross) return {0, 1};
   return {0, 1, 2};
 }
-}  // namespace
 
 PoseSearch::PoseSearch(const PoseSearchOptions& options, const PoseSearchContext& context)
     : options_(options), c_(context) {
