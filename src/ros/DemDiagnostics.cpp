@@ -104,6 +104,7 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   last_prealign_shift_m_ = r.prealign_shift_m;
   last_carried_moving_pixels_ = r.carried_moving_pixels;
   if (r.prealign_rejected) ++counts_.prealign_rejected;
+  if (r.prealign_discarded > 0) ++counts_.prealign_discarded;
   if (r.carried_moving_pixels > 0) ++counts_.carried_moving;
   switch (r.status) {
     case FrameStatus::kInitialized: ++counts_.initialized; consecutive_bad_ = 0; break;
@@ -198,6 +199,7 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("dropped (busy: replaced by a newer frame)", counts_.dropped);
   stat.add("map restarts", counts_.restarts);
   stat.add("pre-alignment beyond max_acceleration_mps2 (prediction kept)", counts_.prealign_rejected);
+  stat.add("frames with pre-alignment starts beyond max_acceleration_mps2 (not candidates)", counts_.prealign_discarded);
   stat.add("pre-alignment shift from the prediction last [m]", last_prealign_shift_m_);
   stat.add("frames skipping moving texture carried from the last two", counts_.carried_moving);
   stat.add("moving texture carried last [px at the test level]", last_carried_moving_pixels_);

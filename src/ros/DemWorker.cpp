@@ -315,6 +315,7 @@ void DemWorker::process(StereoFrame& f) {
   record.processing_ms = fr.time_ms;
   record.prealign_shift_m = fr.prealign_shift_m;
   record.prealign_rejected = fr.prealign_rejected;
+  record.prealign_discarded = fr.prealign_discarded;
   record.carried_moving_pixels = fr.carried_moving_pixels;
   record.wait_ms = (start - f.received).toSec() * 1e3;
   if (last_processed_stamp_s_ >= 0.0) record.stamp_gap_s = stamp_s - last_processed_stamp_s_;

@@ -483,8 +483,10 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   d.processed(r);
   r.prealign_shift_m = 0.05;
   r.prealign_rejected = false;
+  r.prealign_discarded = 3;  // three other starts ended beyond the bound
   r.carried_moving_pixels = 0;
   d.processed(r);
+  r.prealign_discarded = 0;
   r.prealign_shift_m = 0.61;
   r.prealign_rejected = true;
   r.carried_moving_pixels = 12;
@@ -493,12 +495,14 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   EXPECT_EQ(c.processed, 3);
   EXPECT_EQ(c.tracked, 3);
   EXPECT_EQ(c.prealign_rejected, 2);
+  EXPECT_EQ(c.prealign_discarded, 1);
   EXPECT_EQ(c.carried_moving, 2);
   diagnostic_updater::DiagnosticStatusWrapper stat;
   d.diagnose(stat);
   std::map<std::string, std::string> kv;
   for (const auto& v : stat.values) kv[v.key] = v.value;
   EXPECT_EQ(kv["pre-alignment beyond max_acceleration_mps2 (prediction kept)"], "2");
+  EXPECT_EQ(kv["frames with pre-alignment starts beyond max_acceleration_mps2 (not candidates)"], "1");
   EXPECT_EQ(std::stod(kv["pre-alignment shift from the prediction last [m]"]), 0.61);
   EXPECT_EQ(kv["frames skipping moving texture carried from the last two"], "2");
   EXPECT_EQ(kv["moving texture carried last [px at the test level]"], "12");

@@ -41,6 +41,8 @@ class DemDiagnostics {
     /// acceleration bound, so that the prediction was kept (FrameResult::prealign_rejected).
     double prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
     bool prealign_rejected = false;
+    /// other starts whose pre-alignment ended beyond that bound (FrameResult::prealign_discarded)
+    int prealign_discarded = 0;
     int carried_moving_pixels = 0;  ///< texture moving with the vehicle, skipped from the start (test level)
   };
 
@@ -82,6 +84,7 @@ class DemDiagnostics {
     long synchronized = 0, processed = 0, initialized = 0, tracked = 0, recovered = 0, failed = 0, rejected = 0,
          skipped = 0, dropped = 0, restarts = 0;
     long prealign_rejected = 0;  ///< frames whose pre-alignment was beyond the acceleration bound
+    long prealign_discarded = 0;  ///< frames with other starts' pre-alignments beyond it (not candidates)
     long carried_moving = 0;     ///< frames that skipped moving texture carried from the last two
   };
   Counts counts() const;
