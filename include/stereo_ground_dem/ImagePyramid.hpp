@@ -52,6 +52,10 @@ class ImagePyramid {
   int width(int l = 0) const { return level(l).image.cols; }
   int height(int l = 0) const { return level(l).image.rows; }
   bool empty() const { return levels_.empty(); }
+  /// A CV_8U mask of level `level` (of its size) on every level: nearest-neighbour to the finer
+  /// levels, any-of 2 x 2 to the coarser ones (a pixel of a coarser level is set when any pixel it
+  /// covers is). Throws std::invalid_argument when the mask does not match the level.
+  std::vector<cv::Mat> maskOnEveryLevel(const cv::Mat& mask, int level) const;
 
  private:
   std::vector<Level> levels_;

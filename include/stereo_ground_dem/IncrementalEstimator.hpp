@@ -28,6 +28,7 @@
 #include "stereo_ground_dem/SkylineMask.hpp"
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TemporalConsistency.hpp"
+#include "stereo_ground_dem/TemporalVisibility.hpp"
 #include "stereo_ground_dem/TrackingCheck.hpp"
 
 namespace stereo_ground_dem {
@@ -63,6 +64,12 @@ struct IncrementalEstimatorOptions {
   /// at the pulled pose, then misses it (docs/results.md, "Texture that moves with the vehicle").
   bool carry_moving_texture = true;
   SkylineMaskOptions skyline;             ///< the ground's outline against a blank background: skipped by them too
+  /// Ground the previous camera did not see (hidden by the surface itself: behind a ridge, a
+  /// crest, a ditch's rim) is skipped by the temporal pairs: tested after the first pass of the
+  /// finest temporal level, at its pose and heights; when more than min_repeat_share of the
+  /// level's samples are hidden, that level runs once more without them (docs/results.md, "Seeing
+  /// past the crest").
+  TemporalVisibilityOptions temporal_visibility;
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
@@ -175,6 +182,7 @@ struct FrameResult {
   int prealign_discarded = 0;            ///< other starts whose pre-alignment ended beyond that bound
   int temporal_finest_level = 0;  ///< finest pyramid level of the temporal pairs this frame (min_temporal_width_px)
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
+  int hidden_pixels = 0;  ///< ground pixels the previous camera did not see (TemporalVisibility; its level)
   int carried_moving_pixels = 0;  ///< ... of the last two frames, skipped from the start (carry_moving_texture)
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
@@ -183,6 +191,7 @@ struct FrameResult {
   double stereo_residual_grey = 0.0;
   double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level
+  int far_pixels = 0;                    ///< ... seeing past the surface (far_depth_ratio): excluded, no obstacle
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).
   VerticalMisalignment rectification;

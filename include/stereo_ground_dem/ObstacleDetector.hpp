@@ -15,6 +15,9 @@
 /// to `ground_band_m` (each a slanted window), so raised ground (a curb top, a terrace above a
 /// step, a verge) is explained as ground before the mesh has risen to it; the test is about the
 /// orientation of the surface (slanted like the ground, or upright) more than about its height.
+/// A third model catches ground the surface does not hold: a fronto-parallel surface at least
+/// `far_depth_ratio` times farther than the ground hypothesis (the far side of a crest that the mesh
+/// continued upwards, ground down a drop-off). Such pixels are excluded too, but are no obstacle.
 /// Excluded pixels take no part in the ground data term (so the mesh cannot climb onto the
 /// obstacle and ground hidden behind it stays unobserved); their disparity gives the obstacle's
 /// position and height for the obstacle layer.
@@ -63,6 +66,12 @@ struct ObstacleDetectorOptions {
   /// those rows (detect()). Without it, the part of an overtaking car left of the limit entered
   /// the temporal pairs (the shadows scene's yaw drift while a car passes).
   bool continue_at_left_border = true;
+  /// Ground seen beyond the mesh's surface: a pixel whose window a fronto-parallel surface at
+  /// least this many times farther than the ground hypothesis explains clearly better (the same
+  /// `cost_ratio`, and better than any upright surface) sees past the surface the mesh holds (over
+  /// a crest whose far side the mesh continues too high, down a drop-off): it is excluded from the
+  /// ground data term but is no obstacle (no obstacle point, not counted in `pixels`). 0 disables.
+  double far_depth_ratio = 2.0;
   /// Threads of the plane sweeps (the ground bands and the upright disparities are split between
   /// them; the result is the same for any number).
   int num_threads = 1;
@@ -71,10 +80,11 @@ struct ObstacleDetectorOptions {
 };
 
 struct ObstacleMask {
-  std::vector<cv::Mat> excluded;  ///< per pyramid level, CV_8U, 255 = obstacle pixel
+  std::vector<cv::Mat> excluded;  ///< per pyramid level, CV_8U, 255 = obstacle pixel or seeing past the surface
   cv::Mat disparity;              ///< at the test level: obstacle disparity in level-0 pixels, 0 = none
   int level = 2;                  ///< the test level
   int pixels = 0;                 ///< obstacle pixels at the test level
+  int far_pixels = 0;             ///< pixels seeing past the surface (far_depth_ratio), not obstacles
 
   /// The 3-D points [m] of the obstacle pixels (from their disparity) in the ground frame.
   std::vector<Eigen::Vector3d> groundPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;

@@ -1,5 +1,6 @@
 #include "stereo_ground_dem/ImagePyramid.hpp"
 
+#include <algorithm>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -30,6 +31,35 @@ ImagePyramid::ImagePyramid(const cv::Mat& image, int levels, ColorOrder order,
     cv::filter2D(lv.image, lv.grad_v, CV_32F, kernel.t(), cv::Point(-1, -1), 0.0,
                  cv::BORDER_REPLICATE);
   }
+}
+
+std::vector<cv::Mat> ImagePyramid::maskOnEveryLevel(const cv::Mat& mask, int level) const {
+  const int n = levels();
+  if (level < 0 || level >= n || mask.type() != CV_8U || mask.size() != this->level(level).image.size()) {
+    throw std::invalid_argument("ImagePyramid::maskOnEveryLevel: the mask is not CV_8U of the level's size");
+  }
+  std::vector<cv::Mat> out(static_cast<size_t>(n));
+  out[static_cast<size_t>(level)] = mask.clone();
+  for (int k = level - 1; k >= 0; --k) {
+    cv::resize(out[static_cast<size_t>(k + 1)], out[static_cast<size_t>(k)], this->level(k).image.size(), 0, 0,
+               cv::INTER_NEAREST);
+  }
+  for (int k = level + 1; k < n; ++k) {
+    const cv::Mat& fine = out[static_cast<size_t>(k - 1)];
+    cv::Mat coarse = cv::Mat::zeros(this->level(k).image.size(), CV_8U);
+    for (int v = 0; v < coarse.rows; ++v) {
+      uint8_t* c = coarse.ptr<uint8_t>(v);
+      for (int u = 0; u < coarse.cols; ++u) {
+        uint8_t any = 0;
+        for (int dv = 0; dv < 2; ++dv)
+          for (int du = 0; du < 2; ++du)
+            any |= fine.at<uint8_t>(std::min(2 * v + dv, fine.rows - 1), std::min(2 * u + du, fine.cols - 1));
+        c[u] = any;
+      }
+    }
+    out[static_cast<size_t>(k)] = coarse;
+  }
+  return out;
 }
 
 }  // namespace stereo_ground_dem

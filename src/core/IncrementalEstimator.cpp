@@ -51,6 +51,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!(nominal_frame_period_s > 0.0)) return bad("nominal_frame_period_s must be > 0");
   if (!check.isValid(&w)) return bad(w);
   if (!skyline.isValid(&w)) return bad(w);
+  if (!temporal_visibility.isValid(&w)) return bad(w);
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
   if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0 || prealign_screen_iterations < 0) {
     return bad("prealign_level, prealign_iterations, prealign_refine_iterations and prealign_screen_iterations must be >= 0");
@@ -518,6 +519,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
   res.obstacle_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_obst).count();
   res.obstacle_pixels = obstacles.pixels;
+  res.far_pixels = obstacles.far_pixels;
 
   // ---- 3. heights, motion and photometry jointly, coarse to fine (alignJointLevels())
   const auto t_joint = std::chrono::steady_clock::now();
@@ -685,6 +687,7 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
     state.heights = level_state.heights;
     for (size_t i = 0; i < slots.size(); ++i) state.photometric[static_cast<size_t>(slots[i])] = level_state.photometric[i];
     if (last.degenerate) break;
+    bool repeat = false;  // the finest temporal level once more, without what the tests below found
     if (temporal && !consistency_checked && options_.temporal_consistency.enabled) {
       // Ground whose texture moved (a moving shadow): flagged after the coarsest joint level, so
       // that the finer temporal levels skip it. When this already was the finest temporal level
@@ -709,11 +712,34 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
         }
         targets[1].reference_excluded = &temporal_skipped;
         targets[2].reference_excluded = &temporal_skipped;
-        if (l == temporal_finest) {
-          ++l;  // this level once more
-          second_pass = true;
-        }
+        repeat = true;
       }
+    }
+    if (temporal && l == temporal_finest && !second_pass && options_.temporal_visibility.enabled && prev_left_) {
+      // Ground the previous camera did not see (TemporalVisibility), at this pass's pose and heights.
+      const cv::Mat rho = stereo_.surfaceInverseDepth(pl, window, state.heights, state.camera_T_ground, l);
+      const Eigen::Isometry3d prev_c_T_g = ground_T_camera_.inverse();
+      const cv::Mat rho_prev = stereo_.surfaceInverseDepth(*prev_left_, window, state.heights, prev_c_T_g, l);
+      const cv::Mat hidden = TemporalVisibility(options_.temporal_visibility)
+                                 .hidden(rho, rho_prev, rig_.atLevel(l), prev_c_T_g * state.camera_T_ground.inverse());
+      res.hidden_pixels = cv::countNonZero(hidden);
+      if (res.hidden_pixels > 0) {
+        const std::vector<cv::Mat> masks = pl.maskOnEveryLevel(hidden, l);
+        temporal_skipped.resize(masks.size());
+        for (size_t ml = 0; ml < masks.size(); ++ml) {
+          if (temporal_skipped[ml].empty()) temporal_skipped[ml] = masks[ml];
+          else cv::bitwise_or(temporal_skipped[ml], masks[ml], temporal_skipped[ml]);
+        }
+        targets[1].reference_excluded = &temporal_skipped;
+        targets[2].reference_excluded = &temporal_skipped;
+        // Enough of it to matter: this level once more (a few pixels behind small bumps ride along
+        // with the consistency test's repeat, if any).
+        if (res.hidden_pixels > options_.temporal_visibility.min_repeat_share * last.valid_pixels) repeat = true;
+      }
+    }
+    if (repeat && l == temporal_finest && !second_pass) {
+      ++l;  // this level once more
+      second_pass = true;
     }
   }
   return last;

@@ -29,6 +29,7 @@ bool ObstacleDetectorOptions::isValid(std::string* why) const {
   if (dilation_px < 0) return bad("dilation_px must be >= 0");
   if (num_threads < 1) return bad("num_threads must be >= 1");
   if (!(foot_min_ratio > 0.0 && foot_min_ratio <= 1.0)) return bad("foot_min_ratio must be in (0, 1]");
+  if (!(far_depth_ratio == 0.0 || far_depth_ratio > 1.0)) return bad("far_depth_ratio must be 0 (off) or > 1");
   return true;
 }
 
@@ -246,17 +247,28 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     float* t = thr.ptr<float>(v);
     for (int u = 0; u < w; ++u) t[u] = d[u] > 0.0f ? static_cast<float>(d[u] * ratio + o.margin_px) : 1e30f;
   }
+  const bool far_test = o.far_depth_ratio > 0.0;
+  // Far surfaces: disparities at most the ground's / far_depth_ratio (-1: none).
+  cv::Mat thr_far(h, w, CV_32F, cv::Scalar(-1.0f));
+  if (far_test) {
+    for (int v = 0; v < h; ++v) {
+      const float* d = dg.ptr<float>(v);
+      float* t = thr_far.ptr<float>(v);
+      for (int u = 0; u < w; ++u) t[u] = d[u] > 0.0f ? static_cast<float>(d[u] / o.far_depth_ratio) : -1.0f;
+    }
+  }
   const float inv_area = 1.0f / static_cast<float>(win.area());
   // Integer disparities, and half-pixel steps where they are small (far obstacles): a window
   // half a pixel off its disparity costs as much as the ground on fine texture.
   std::vector<float> candidates;
-  for (int d2 = 2; d2 <= 2 * dmax; ++d2) {
+  for (int d2 = far_test ? 1 : 2; d2 <= 2 * dmax; ++d2) {
     if (d2 % 2 == 0 || d2 < 2 * kHalfStepBelowPx) candidates.push_back(0.5f * static_cast<float>(d2));
   }
   // Candidates [c0, c1): the cheapest window per pixel (the first of equals) and its disparity.
-  auto sweepUpright = [&](size_t c0, size_t c1, cv::Mat* best, cv::Mat* best_d) {
+  auto sweepUpright = [&](size_t c0, size_t c1, cv::Mat* best, cv::Mat* best_d, cv::Mat* best_far) {
     *best = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
     *best_d = cv::Mat::zeros(h, w, CV_32F);
+    *best_far = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
     cv::Mat diff(h, w, CV_32F, cv::Scalar(0.0f)), sum_d;
     for (size_t ci = c0; ci < c1; ++ci) {
       const float df = candidates[ci];
@@ -278,6 +290,12 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
         const float* t = thr.ptr<float>(v);
         float* b = best->ptr<float>(v);
         float* bd = best_d->ptr<float>(v);
+        if (far_test) {
+          const float* tf = thr_far.ptr<float>(v);
+          float* bf = best_far->ptr<float>(v);
+          for (int u = d + hw; u < w; ++u)
+            if (df <= tf[u]) bf[u] = std::min(bf[u], s[u] * inv_area);
+        }
         for (int u = d + hw; u < w; ++u) {  // windows reaching past the left border are skipped
           if (df < t[u]) continue;
           const float m = s[u] * inv_area;
@@ -296,11 +314,12 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     for (float df : candidates) total += w - std::ceil(df);
     for (mid = 0; mid < candidates.size() && acc < 0.5 * total; ++mid) acc += w - std::ceil(candidates[mid]);
   }
-  cv::Mat best, best_d, best2, best_d2;
+  cv::Mat best, best_d, best2, best_d2, best_far, best_far2;
   both([&](int c) {
-    if (c == 0) sweepUpright(0, mid, &best, &best_d);
-    else sweepUpright(mid, candidates.size(), &best2, &best_d2);
+    if (c == 0) sweepUpright(0, mid, &best, &best_d, &best_far);
+    else sweepUpright(mid, candidates.size(), &best2, &best_d2, &best_far2);
   });
+  if (two && far_test) cv::min(best_far, best_far2, best_far);
   if (two) {
     for (int v = row0; v <= row1; ++v) {
       float* b = best.ptr<float>(v);
@@ -467,29 +486,29 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     }
   }
   out.pixels = cv::countNonZero(mask);
+  // Pixels seeing past the surface (far_depth_ratio): excluded, no obstacle (no point, not counted
+  // above).
+  if (far_test) {
+    for (int v = row0; v <= row1; ++v) {
+      const float* cg = cost_g.ptr<float>(v);
+      const float* b = best.ptr<float>(v);
+      const float* bf = best_far.ptr<float>(v);
+      const float* rho = ground_rho.ptr<float>(v);
+      uint8_t* m = mask.ptr<uint8_t>(v);
+      for (int u = 0; u < w; ++u) {
+        if (m[u] || !(rho[u] > 0.0f) || cg[u] > 1e29f || bf[u] > 1e29f) continue;
+        if (cg[u] > o.min_ground_cost_grey && bf[u] < o.cost_ratio * cg[u] && bf[u] < b[u]) {
+          m[u] = 255;
+          ++out.far_pixels;
+        }
+      }
+    }
+  }
   if (o.dilation_px > 0) {
     cv::dilate(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * o.dilation_px + 1, 2 * o.dilation_px + 1)));
   }
   // Masks for every level: nearest-neighbour upsampling to finer levels, any-of to coarser ones.
-  out.excluded[static_cast<size_t>(lv)] = mask;
-  for (int k = lv - 1; k >= 0; --k) {
-    cv::resize(out.excluded[static_cast<size_t>(k + 1)], out.excluded[static_cast<size_t>(k)],
-               out.excluded[static_cast<size_t>(k)].size(), 0, 0, cv::INTER_NEAREST);
-  }
-  for (int k = lv + 1; k < levels; ++k) {
-    const cv::Mat& fine = out.excluded[static_cast<size_t>(k - 1)];
-    cv::Mat& coarse = out.excluded[static_cast<size_t>(k)];
-    for (int v = 0; v < coarse.rows; ++v)
-      for (int u = 0; u < coarse.cols; ++u) {
-        uint8_t any = 0;
-        for (int dv = 0; dv < 2; ++dv)
-          for (int du = 0; du < 2; ++du) {
-            const int fv = std::min(2 * v + dv, fine.rows - 1), fu = std::min(2 * u + du, fine.cols - 1);
-            any |= fine.at<uint8_t>(fv, fu);
-          }
-        coarse.at<uint8_t>(v, u) = any;
-      }
-  }
+  out.excluded = left.maskOnEveryLevel(mask, lv);
   return out;
 }
 

@@ -109,6 +109,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("min_incidence_ratio", &s.min_incidence_ratio,
     "a vertex seen more obliquely than this fraction of level ground's incidence is not observed (0: off)", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
+  d("far_depth_ratio", &ob.far_depth_ratio,
+    "pixels a surface this many times farther than the ground explains better see past the mesh: excluded, no obstacle (0: off)", true);
   d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
   b("hidden_body_along_ray", &ob.hidden_body_along_ray,
     "... only behind the obstacle along the camera's rays (fewer marks on free ground, fewer obstacle cells found)", true);
@@ -127,6 +129,10 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
     "temporal pairs skip samples on the previous frame's obstacle pixels", true);
   b("carry_moving_texture", &e.carry_moving_texture,
     "temporal pairs skip the texture flagged as moving at the same pixels in the last two frames (it moves with the vehicle)", true);
+  b("temporal_visibility", &e.temporal_visibility.enabled,
+    "temporal pairs skip ground the previous camera did not see (hidden by the surface itself)", true);
+  d("temporal_visibility_tolerance", &e.temporal_visibility.inverse_depth_tolerance,
+    "hidden when the previous view's surface there is nearer by more than this share of the inverse depth", true);
   b("skyline_mask", &e.skyline.enabled,
     "temporal pairs skip the ground's outline against a blank background (sky): it moves with the viewpoint", true);
   d("skyline_blank_gradient_grey_per_px", &e.skyline.blank_gradient_grey_per_px,

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace stereo_ground_dem {
 
@@ -80,9 +82,23 @@ void obstacleLayer(const GroundGrid& grid, const cv::Mat& obstacles, const sim::
   }
 }
 
-void finish(std::vector<double>& e, int seen, HeightErrorStats* s) {
+/// Whether the segment from `camera` to the terrain point `q` clears the terrain (sampled every
+/// 0.25 m up to 0.3 m before q, 2 cm of slack): the point is not hidden behind a crest or a ridge.
+bool lineOfSight(const sim::SyntheticScene& scene, const Eigen::Vector3d& camera, const Eigen::Vector3d& q) {
+  const Eigen::Vector3d d = q - camera;
+  const double len = d.norm();
+  if (!(len > 0.3)) return true;
+  const int n = static_cast<int>(std::ceil((len - 0.3) / 0.25));
+  for (int i = 1; i <= n; ++i) {
+    const Eigen::Vector3d p = camera + d * (std::min(i * 0.25, len - 0.3) / len);
+    if (p.z() < scene.terrainHeight(p.x(), p.y()) - 0.02) return false;
+  }
+  return true;
+}
+
+void finish(std::vector<double>& e, int visible, int covered, HeightErrorStats* s) {
   s->count = static_cast<int>(e.size());
-  s->coverage = seen > 0 ? static_cast<double>(e.size()) / seen : 0.0;
+  s->coverage = visible > 0 ? static_cast<double>(covered) / visible : 0.0;
   if (e.empty()) return;
   std::sort(e.begin(), e.end());
   s->median_m = e[e.size() / 2];
@@ -105,7 +121,10 @@ DemMetrics DemMetrics::compute(const GroundGrid& grid, const cv::Mat& elevation,
   const double half_fov = std::max(rig.cx, rig.width - 1 - rig.cx) / rig.fx;
   const double edges[5] = {0.0, 10.0, 20.0, 30.0, 40.0};
   std::vector<double> errs[4], err20;
-  int seen[4] = {0, 0, 0, 0}, seen20 = 0;
+  int visible[4] = {0, 0, 0, 0}, covered[4] = {0, 0, 0, 0}, visible20 = 0, covered20 = 0;
+  std::vector<Eigen::Vector3d> centres;  // true camera centres
+  for (const auto& t : c_T_g) centres.push_back(t.inverse().translation());
+  std::vector<std::pair<double, size_t>> candidates;
   int tp = 0, fp = 0, fn = 0, tn = 0;
   m.signed_error = cv::Mat(grid.rows, grid.cols, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
   for (int r = 0; r < grid.rows; ++r) {
@@ -119,11 +138,26 @@ DemMetrics DemMetrics::compute(const GroundGrid& grid, const cv::Mat& elevation,
       bool obstacle = false;
       for (double t : times) obstacle = obstacle || scene.insideObstacleFootprint(p.x(), p.y(), t);
       // smallest depth at which a camera saw the terrain point inside its horizontal field of view
-      double best = std::numeric_limits<double>::infinity();
+      // (the heights are scored there); the coverage counts only where that camera's line of
+      // sight cleared the terrain (ground hidden behind a crest is not there to be mapped)
+      double best = std::numeric_limits<double>::infinity(), best_visible = best;
       const Eigen::Vector3d q(p.x(), p.y(), terrain);
-      for (const auto& t : c_T_g) {
-        const Eigen::Vector3d xc = t * q;
-        if (xc.z() > 0.5 && std::abs(xc.x()) <= xc.z() * half_fov && xc.y() > 0.0) best = std::min(best, xc.z());
+      candidates.clear();
+      for (size_t k = 0; k < c_T_g.size(); ++k) {
+        const Eigen::Vector3d xc = c_T_g[k] * q;
+        if (xc.z() > 0.5 && std::abs(xc.x()) <= xc.z() * half_fov && xc.y() > 0.0) {
+          best = std::min(best, xc.z());
+          if (xc.z() < edges[4]) candidates.emplace_back(xc.z(), k);
+        }
+      }
+      if (!obstacle && !candidates.empty()) {
+        std::sort(candidates.begin(), candidates.end());
+        for (const auto& cand : candidates) {
+          if (lineOfSight(scene, centres[cand.second], q)) {
+            best_visible = cand.first;
+            break;
+          }
+        }
       }
       if (known) {
         ++m.known_vertices;
@@ -145,14 +179,16 @@ DemMetrics DemMetrics::compute(const GroundGrid& grid, const cv::Mat& elevation,
       if (obstacle || !std::isfinite(best)) continue;
       const double e = std::abs(p.z() - terrain);
       for (int b = 0; b < 4; ++b) {
-        if (best >= edges[b] && best < edges[b + 1]) {
-          ++seen[b];
-          if (known) errs[b].push_back(e);
+        if (best >= edges[b] && best < edges[b + 1] && known) errs[b].push_back(e);
+        if (best_visible >= edges[b] && best_visible < edges[b + 1]) {
+          ++visible[b];
+          covered[b] += known;
         }
       }
-      if (best < 20.0) {
-        ++seen20;
-        if (known) err20.push_back(e);
+      if (best < 20.0 && known) err20.push_back(e);
+      if (best_visible < 20.0) {
+        ++visible20;
+        covered20 += known;
       }
     }
   }
@@ -160,11 +196,11 @@ DemMetrics DemMetrics::compute(const GroundGrid& grid, const cv::Mat& elevation,
     HeightErrorStats s;
     s.min_depth_m = edges[b];
     s.max_depth_m = edges[b + 1];
-    finish(errs[b], seen[b], &s);
+    finish(errs[b], visible[b], covered[b], &s);
     m.bins.push_back(s);
   }
   m.within_20m.max_depth_m = 20.0;
-  finish(err20, seen20, &m.within_20m);
+  finish(err20, visible20, covered20, &m.within_20m);
   if (!obstacles.empty()) obstacleLayer(grid, obstacles, scene, true_T_est, c_T_g, times, half_fov, &m);
   m.trav_compared = tp + fp + fn + tn;
   m.trav_precision = tp + fp > 0 ? static_cast<double>(tp) / (tp + fp) : 0.0;

@@ -103,6 +103,8 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   if (std::isfinite(r.stamp_gap_s)) max_gap_s_ = std::max(max_gap_s_, r.stamp_gap_s);
   last_prealign_shift_m_ = r.prealign_shift_m;
   last_carried_moving_pixels_ = r.carried_moving_pixels;
+  last_hidden_pixels_ = r.hidden_pixels;
+  last_far_pixels_ = r.far_pixels;
   if (r.prealign_rejected) ++counts_.prealign_rejected;
   if (r.prealign_discarded > 0) ++counts_.prealign_discarded;
   if (r.carried_moving_pixels > 0) ++counts_.carried_moving;
@@ -203,6 +205,8 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("pre-alignment shift from the prediction last [m]", last_prealign_shift_m_);
   stat.add("frames skipping moving texture carried from the last two", counts_.carried_moving);
   stat.add("moving texture carried last [px at the test level]", last_carried_moving_pixels_);
+  stat.add("ground the previous camera did not see, last [px at the finest temporal level]", last_hidden_pixels_);
+  stat.add("ground seen past the surface, last (excluded) [px at the obstacle test level]", last_far_pixels_);
   stat.add("last status", status_);
   stat.add("processing last [ms]", last_ms_);
   stat.add("processing mean [ms]", counts_.processed > 0 ? sum_ms_ / counts_.processed : 0.0);

@@ -490,6 +490,8 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   r.prealign_shift_m = 0.61;
   r.prealign_rejected = true;
   r.carried_moving_pixels = 12;
+  r.hidden_pixels = 345;
+  r.far_pixels = 67;
   d.processed(r);
   const DemDiagnostics::Counts c = d.counts();
   EXPECT_EQ(c.processed, 3);
@@ -506,6 +508,8 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   EXPECT_EQ(std::stod(kv["pre-alignment shift from the prediction last [m]"]), 0.61);
   EXPECT_EQ(kv["frames skipping moving texture carried from the last two"], "2");
   EXPECT_EQ(kv["moving texture carried last [px at the test level]"], "12");
+  EXPECT_EQ(kv["ground the previous camera did not see, last [px at the finest temporal level]"], "345");
+  EXPECT_EQ(kv["ground seen past the surface, last (excluded) [px at the obstacle test level]"], "67");
   r.carried_moving_pixels = 0;
   r.prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
   r.prealign_rejected = false;

@@ -23,7 +23,9 @@ struct HeightErrorStats {
   double min_depth_m = 0.0, max_depth_m = 0.0;  ///< the bin: seen within [min, max)
   int count = 0;
   double median_m = 0.0, rmse_m = 0.0, p95_m = 0.0;  ///< of |error|
-  double coverage = 0.0;  ///< known vertices / vertices seen in this bin (terrain, no obstacle)
+  /// Known vertices / vertices a camera saw in this bin (terrain, no obstacle, in the horizontal
+  /// field of view with a line of sight clear of the terrain: ground behind a crest is not counted).
+  double coverage = 0.0;
 };
 
 struct DemMetrics {

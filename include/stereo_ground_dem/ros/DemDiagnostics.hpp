@@ -44,6 +44,8 @@ class DemDiagnostics {
     /// other starts whose pre-alignment ended beyond that bound (FrameResult::prealign_discarded)
     int prealign_discarded = 0;
     int carried_moving_pixels = 0;  ///< texture moving with the vehicle, skipped from the start (test level)
+    int hidden_pixels = 0;          ///< ground the previous camera did not see (TemporalVisibility; temporal level)
+    int far_pixels = 0;             ///< ground seen past the surface (far_depth_ratio; obstacle test level)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -109,6 +111,8 @@ class DemDiagnostics {
   double last_gap_s_ = std::numeric_limits<double>::quiet_NaN(), max_gap_s_ = 0.0;
   double last_prealign_shift_m_ = std::numeric_limits<double>::quiet_NaN();
   int last_carried_moving_pixels_ = 0;
+  int last_hidden_pixels_ = 0;
+  int last_far_pixels_ = 0;
   std::string status_;
   std::string last_problem_;
   bool last_problem_error_ = false;
