@@ -567,3 +567,34 @@ TEST(Obstacles, GroundPastTheSurfaceIsExcludedButNoObstacle) {
   EXPECT_GE(cv::countNonZero(near.excluded[lv]), near.far_pixels);
   EXPECT_GT(cv::countNonZero(near.excluded[lv]), cv::countNonZero(off.excluded[lv]) + near.far_pixels / 2);
 }
+
+// The pixels seeing past a surface hypothesis 3x nearer than the road carry their best window's
+// disparity (ObstacleMask::far_disparity): their points lie on the road, rough as a window's
+// integer or half-pixel disparity at the test level is. The sweep split between two threads gives
+// the same disparities. Measured: 9,288 points, |height| median 0.059 m, 90th 0.163 m (the
+// half-pixel steps at level 2 are 2 px at level 0: 10 % of the depth at 50 m).
+TEST(Obstacles, PointsSeenPastTheSurfaceLieOnTheGround) {
+  const DetectorInput in;
+  ASSERT_TRUE(in.r.ok) << in.r.message;
+  ObstacleDetectorOptions o;
+  o.far_depth_ratio = 2.0;
+  o.num_threads = 2;
+  const cv::Mat near_rho = in.rho * 3.0;
+  const ObstacleMask near = ObstacleDetector(o).detect(in.left, in.right, in.c.rig, in.r.photometric, near_rho);
+  const std::vector<Eigen::Vector3d> pts = near.farPoints(in.c.rig, in.r.ground_T_camera);
+  ASSERT_EQ(static_cast<int>(pts.size()), near.far_pixels);
+  ASSERT_GT(pts.size(), 1000u);
+  std::vector<double> dz;
+  for (const Eigen::Vector3d& p : pts) dz.push_back(std::abs(p.z()));
+  std::sort(dz.begin(), dz.end());
+  const double med = dz[dz.size() / 2], p90 = dz[dz.size() * 9 / 10];
+  std::printf("[ far      ] %zu points seen past the surface: |height| median %.3f m, 90th %.3f m\n", pts.size(), med,
+              p90);
+  EXPECT_LT(med, 0.10);
+  EXPECT_LT(p90, 0.28);
+  o.num_threads = 1;
+  const ObstacleMask one = ObstacleDetector(o).detect(in.left, in.right, in.c.rig, in.r.photometric, near_rho);
+  EXPECT_EQ(cv::countNonZero(one.far_disparity != near.far_disparity), 0);
+  // with the true surface, nothing is seen past it and there are no such points
+  EXPECT_LT(in.detect(o).farPoints(in.c.rig, in.r.ground_T_camera).size(), pts.size() / 100);
+}

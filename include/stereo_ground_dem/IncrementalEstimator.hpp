@@ -20,6 +20,7 @@
 
 #include "stereo_ground_dem/DisparityPlaneFit.hpp"
 #include "stereo_ground_dem/ElevationMap.hpp"
+#include "stereo_ground_dem/FarGroundSeeds.hpp"
 #include "stereo_ground_dem/EstimatorState.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/MapView.hpp"
@@ -70,6 +71,10 @@ struct IncrementalEstimatorOptions {
   /// level's samples are hidden, that level runs once more without them (docs/results.md, "Seeing
   /// past the crest").
   TemporalVisibilityOptions temporal_visibility;
+  /// Where many pixels look past the surface (ObstacleDetector's far_depth_ratio: the far side of
+  /// a crest), the unknown vertices under their rough points start at those points' heights and
+  /// the obstacle test runs again on that surface (docs/results.md, "The far side of the crest").
+  FarGroundSeedsOptions far_seeds;
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
@@ -192,6 +197,7 @@ struct FrameResult {
   double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level
   int far_pixels = 0;                    ///< ... seeing past the surface (far_depth_ratio): excluded, no obstacle
+  int far_seeded_vertices = 0;           ///< unknown vertices started from those pixels' points (FarGroundSeeds)
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).
   VerticalMisalignment rectification;

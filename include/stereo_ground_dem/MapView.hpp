@@ -34,9 +34,10 @@ class MapView {
   /// The starting heights on `window` and their information: the map's, where known to better
   /// than max_init_std_m; elsewhere a plane fitted to the known ones (the level plane under the
   /// camera without 20 of them) relaxed to the harmonic extension of the known heights, with
-  /// information 0.
+  /// information 0. Finite `seeds` (FarGroundSeeds) stand for the map's heights where it does not
+  /// know them: they are kept and extended like known heights, with information 0.
   void initialHeights(const GroundGrid& window, const Eigen::Isometry3d& camera_T_ground, Eigen::VectorXd* heights,
-                      Eigen::VectorXd* information) const;
+                      Eigen::VectorXd* information, const Eigen::VectorXd* seeds = nullptr) const;
 
   /// The pose whose height and attitude above the ground come from the pair's dominant plane
   /// (DisparityPlaneFit on the sparse matches of `check`) and the map's local plane 4-15 m ahead,

@@ -85,9 +85,12 @@ struct ObstacleMask {
   int level = 2;                  ///< the test level
   int pixels = 0;                 ///< obstacle pixels at the test level
   int far_pixels = 0;             ///< pixels seeing past the surface (far_depth_ratio), not obstacles
+  cv::Mat far_disparity;          ///< at the test level: their best window's disparity in level-0 pixels, 0 = none
 
   /// The 3-D points [m] of the obstacle pixels (from their disparity) in the ground frame.
   std::vector<Eigen::Vector3d> groundPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;
+  /// The 3-D points [m] of the pixels seeing past the surface (from far_disparity), ground frame.
+  std::vector<Eigen::Vector3d> farPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;
 };
 
 /// Per-vertex obstacle evidence of one frame on a grid.

@@ -52,6 +52,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!check.isValid(&w)) return bad(w);
   if (!skyline.isValid(&w)) return bad(w);
   if (!temporal_visibility.isValid(&w)) return bad(w);
+  if (!far_seeds.isValid(&w)) return bad(w);
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
   if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0 || prealign_screen_iterations < 0) {
     return bad("prealign_level, prealign_iterations, prealign_refine_iterations and prealign_screen_iterations must be >= 0");
@@ -515,8 +516,22 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
 
   // ---- 2. occlusion reasoning at the aligned pose
   const auto t_obst = std::chrono::steady_clock::now();
-  const ObstacleMask obstacles =
+  ObstacleMask obstacles =
       stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
+  if (options_.far_seeds.enabled && obstacles.far_pixels >= options_.far_seeds.min_far_pixels) {
+    // Ground seen past the surface (a crest's far side): its unknown vertices start at its points,
+    // and the test runs again on that surface (FarGroundSeeds).
+    const Eigen::VectorXd seeds = FarGroundSeeds(options_.far_seeds)
+                                      .seeds(window, heights, info, obstacles.farPoints(rig_, state.camera_T_ground.inverse()));
+    res.far_seeded_vertices = static_cast<int>(seeds.array().isFinite().count());
+    if (res.far_seeded_vertices > 0) {
+      view.initialHeights(window, state.camera_T_ground, &heights, &info, &seeds);
+      state.heights = heights;
+      prior.mean = heights;
+      prior.information = info * options_.prior_weight;
+      obstacles = stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
+    }
+  }
   res.obstacle_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_obst).count();
   res.obstacle_pixels = obstacles.pixels;
   res.far_pixels = obstacles.far_pixels;

@@ -33,7 +33,7 @@ GroundGrid MapView::window(const Eigen::Isometry3d& camera_T_ground) const {
 }
 
 void MapView::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camera_T_ground, Eigen::VectorXd* heights,
-                             Eigen::VectorXd* information) const {
+                             Eigen::VectorXd* information, const Eigen::VectorXd* seeds) const {
   map_.sample(w, heights, information);
   // Weakly known heights (seen by a few pixels at long range) are not trusted as a start: a vertex
   // that starts far too low hides behind its neighbours and never gets the pixels to correct it.
@@ -41,8 +41,10 @@ void MapView::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camer
   int known = 0;
   for (int v = 0; v < w.vertexCount(); ++v) {
     if (!std::isfinite((*heights)[v]) || (*information)[v] < min_info) {
-      (*heights)[v] = std::numeric_limits<double>::quiet_NaN();
+      const bool seeded = seeds != nullptr && seeds->size() == w.vertexCount() && std::isfinite((*seeds)[v]);
+      (*heights)[v] = seeded ? (*seeds)[v] : std::numeric_limits<double>::quiet_NaN();
       (*information)[v] = 0.0;
+      known += seeded ? 1 : 0;
     } else {
       ++known;
     }

@@ -33,8 +33,12 @@ bool ObstacleDetectorOptions::isValid(std::string* why) const {
   return true;
 }
 
-std::vector<Eigen::Vector3d> ObstacleMask::groundPoints(const StereoRig& rig,
-                                                        const Eigen::Isometry3d& ground_T_camera) const {
+namespace {
+
+// The 3-D points [m] in the ground frame of the pixels of `disparity` (level-0 pixels, 0 = none)
+// at pyramid level `level`.
+std::vector<Eigen::Vector3d> pointsOf(const cv::Mat& disparity, int level, const StereoRig& rig,
+                                      const Eigen::Isometry3d& ground_T_camera) {
   std::vector<Eigen::Vector3d> pts;
   if (disparity.empty()) return pts;
   const double scale = std::ldexp(1.0, level);  // test-level pixel -> level-0 pixel
@@ -48,6 +52,17 @@ std::vector<Eigen::Vector3d> ObstacleMask::groundPoints(const StereoRig& rig,
     }
   }
   return pts;
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> ObstacleMask::groundPoints(const StereoRig& rig,
+                                                        const Eigen::Isometry3d& ground_T_camera) const {
+  return pointsOf(disparity, level, rig, ground_T_camera);
+}
+
+std::vector<Eigen::Vector3d> ObstacleMask::farPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const {
+  return pointsOf(far_disparity, level, rig, ground_T_camera);
 }
 
 ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
@@ -151,6 +166,7 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
   const int w = l.cols, h = l.rows;
   for (int k = 0; k < levels; ++k) out.excluded.push_back(cv::Mat::zeros(left.height(k), left.width(k), CV_8U));
   out.disparity = cv::Mat::zeros(h, w, CV_32F);
+  out.far_disparity = cv::Mat::zeros(h, w, CV_32F);
   if (!o.enabled) return out;
   if (ground_rho.size() != l.size() || ground_rho.type() != CV_32F) {
     throw std::invalid_argument("ObstacleDetector: ground inverse depth must be CV_32F of the test level's size");
@@ -265,10 +281,12 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     if (d2 % 2 == 0 || d2 < 2 * kHalfStepBelowPx) candidates.push_back(0.5f * static_cast<float>(d2));
   }
   // Candidates [c0, c1): the cheapest window per pixel (the first of equals) and its disparity.
-  auto sweepUpright = [&](size_t c0, size_t c1, cv::Mat* best, cv::Mat* best_d, cv::Mat* best_far) {
+  auto sweepUpright = [&](size_t c0, size_t c1, cv::Mat* best, cv::Mat* best_d, cv::Mat* best_far,
+                          cv::Mat* best_far_d) {
     *best = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
     *best_d = cv::Mat::zeros(h, w, CV_32F);
     *best_far = cv::Mat(h, w, CV_32F, cv::Scalar(1e30f));
+    *best_far_d = cv::Mat::zeros(h, w, CV_32F);
     cv::Mat diff(h, w, CV_32F, cv::Scalar(0.0f)), sum_d;
     for (size_t ci = c0; ci < c1; ++ci) {
       const float df = candidates[ci];
@@ -293,8 +311,14 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
         if (far_test) {
           const float* tf = thr_far.ptr<float>(v);
           float* bf = best_far->ptr<float>(v);
-          for (int u = d + hw; u < w; ++u)
-            if (df <= tf[u]) bf[u] = std::min(bf[u], s[u] * inv_area);
+          float* bfd = best_far_d->ptr<float>(v);
+          for (int u = d + hw; u < w; ++u) {
+            const float m = s[u] * inv_area;
+            if (df <= tf[u] && m < bf[u]) {
+              bf[u] = m;
+              bfd[u] = df;
+            }
+          }
         }
         for (int u = d + hw; u < w; ++u) {  // windows reaching past the left border are skipped
           if (df < t[u]) continue;
@@ -314,12 +338,16 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     for (float df : candidates) total += w - std::ceil(df);
     for (mid = 0; mid < candidates.size() && acc < 0.5 * total; ++mid) acc += w - std::ceil(candidates[mid]);
   }
-  cv::Mat best, best_d, best2, best_d2, best_far, best_far2;
+  cv::Mat best, best_d, best2, best_d2, best_far, best_far2, best_far_d, best_far_d2;
   both([&](int c) {
-    if (c == 0) sweepUpright(0, mid, &best, &best_d, &best_far);
-    else sweepUpright(mid, candidates.size(), &best2, &best_d2, &best_far2);
+    if (c == 0) sweepUpright(0, mid, &best, &best_d, &best_far, &best_far_d);
+    else sweepUpright(mid, candidates.size(), &best2, &best_d2, &best_far2, &best_far_d2);
   });
-  if (two && far_test) cv::min(best_far, best_far2, best_far);
+  if (two && far_test) {
+    const cv::Mat second = best_far2 < best_far;
+    best_far2.copyTo(best_far, second);
+    best_far_d2.copyTo(best_far_d, second);
+  }
   if (two) {
     for (int v = row0; v <= row1; ++v) {
       float* b = best.ptr<float>(v);
@@ -493,12 +521,15 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
       const float* cg = cost_g.ptr<float>(v);
       const float* b = best.ptr<float>(v);
       const float* bf = best_far.ptr<float>(v);
+      const float* bfd = best_far_d.ptr<float>(v);
       const float* rho = ground_rho.ptr<float>(v);
       uint8_t* m = mask.ptr<uint8_t>(v);
+      float* fd = out.far_disparity.ptr<float>(v);
       for (int u = 0; u < w; ++u) {
         if (m[u] || !(rho[u] > 0.0f) || cg[u] > 1e29f || bf[u] > 1e29f) continue;
         if (cg[u] > o.min_ground_cost_grey && bf[u] < o.cost_ratio * cg[u] && bf[u] < b[u]) {
           m[u] = 255;
+          fd[u] = bfd[u] * scale;
           ++out.far_pixels;
         }
       }

@@ -111,6 +111,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   d("far_depth_ratio", &ob.far_depth_ratio,
     "pixels a surface this many times farther than the ground explains better see past the mesh: excluded, no obstacle (0: off)", true);
+  b("far_ground_seeds", &e.far_seeds.enabled,
+    "unknown vertices under ground seen past the surface (a crest's far side) start at its rough points", true);
   d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
   b("hidden_body_along_ray", &ob.hidden_body_along_ray,
     "... only behind the obstacle along the camera's rays (fewer marks on free ground, fewer obstacle cells found)", true);

@@ -105,6 +105,7 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   last_carried_moving_pixels_ = r.carried_moving_pixels;
   last_hidden_pixels_ = r.hidden_pixels;
   last_far_pixels_ = r.far_pixels;
+  last_far_seeded_vertices_ = r.far_seeded_vertices;
   if (r.prealign_rejected) ++counts_.prealign_rejected;
   if (r.prealign_discarded > 0) ++counts_.prealign_discarded;
   if (r.carried_moving_pixels > 0) ++counts_.carried_moving;
@@ -207,6 +208,7 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("moving texture carried last [px at the test level]", last_carried_moving_pixels_);
   stat.add("ground the previous camera did not see, last [px at the finest temporal level]", last_hidden_pixels_);
   stat.add("ground seen past the surface, last (excluded) [px at the obstacle test level]", last_far_pixels_);
+  stat.add("vertices started from ground seen past the surface, last", last_far_seeded_vertices_);
   stat.add("last status", status_);
   stat.add("processing last [ms]", last_ms_);
   stat.add("processing mean [ms]", counts_.processed > 0 ? sum_ms_ / counts_.processed : 0.0);

@@ -492,6 +492,7 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   r.carried_moving_pixels = 12;
   r.hidden_pixels = 345;
   r.far_pixels = 67;
+  r.far_seeded_vertices = 8;
   d.processed(r);
   const DemDiagnostics::Counts c = d.counts();
   EXPECT_EQ(c.processed, 3);
@@ -510,6 +511,7 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   EXPECT_EQ(kv["moving texture carried last [px at the test level]"], "12");
   EXPECT_EQ(kv["ground the previous camera did not see, last [px at the finest temporal level]"], "345");
   EXPECT_EQ(kv["ground seen past the surface, last (excluded) [px at the obstacle test level]"], "67");
+  EXPECT_EQ(kv["vertices started from ground seen past the surface, last"], "8");
   r.carried_moving_pixels = 0;
   r.prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
   r.prealign_rejected = false;

@@ -46,6 +46,7 @@ class DemDiagnostics {
     int carried_moving_pixels = 0;  ///< texture moving with the vehicle, skipped from the start (test level)
     int hidden_pixels = 0;          ///< ground the previous camera did not see (TemporalVisibility; temporal level)
     int far_pixels = 0;             ///< ground seen past the surface (far_depth_ratio; obstacle test level)
+    int far_seeded_vertices = 0;    ///< unknown vertices started from its points (FarGroundSeeds)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -113,6 +114,7 @@ class DemDiagnostics {
   int last_carried_moving_pixels_ = 0;
   int last_hidden_pixels_ = 0;
   int last_far_pixels_ = 0;
+  int last_far_seeded_vertices_ = 0;
   std::string status_;
   std::string last_problem_;
   bool last_problem_error_ = false;

@@ -1,0 +1,57 @@
+#pragma once
+/// \file FarGroundSeeds.hpp
+/// Starting heights for ground the surface hypothesis does not reach: the far side of a crest.
+///
+/// Climbing towards a crest, the mesh continues the climb past it; the ground beyond, falling
+/// away, comes into view 20-65 m ahead while the hypothesis places those pixels 10-20 m away, 8-19
+/// px of disparity off, far outside any alignment's basin. ObstacleDetector sees that such pixels
+/// look past the surface (far_depth_ratio) and excludes them, so they never correct the mesh: the
+/// far side stays unmapped until the camera is over the crest (the rendered `rolling` scene lost
+/// 10-15 % of its coverage within 20 m that way). Their best fronto-parallel window's disparity
+/// gives a rough 3-D point each; the unknown vertices under enough of them start at those points'
+/// median height, the hidden band between the crest and them follows by the harmonic extension
+/// (MapView::initialHeights), and the obstacle test runs again on that surface: the far side's
+/// pixels then fit it and the joint alignment refines it like any other new ground.
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "stereo_ground_dem/GroundGrid.hpp"
+
+namespace stereo_ground_dem {
+
+struct FarGroundSeedsOptions {
+  bool enabled = true;
+  /// Seeds are sought only when at least this many pixels (at the obstacle test's level) look past
+  /// the surface: a crest's far side, not the few pixels over a bump's top.
+  int min_far_pixels = 200;
+  /// A vertex is seeded from the points within one grid spacing of it (its bilinear support), when
+  /// there are at least this many.
+  int min_points = 3;
+  /// ... and only where their median lies at least this far below the surface hypothesis (the
+  /// pixels looked past it, so their ground is lower) [m].
+  double min_drop_m = 0.2;
+
+  bool isValid(std::string* why) const;
+};
+
+class FarGroundSeeds {
+ public:
+  /// Throws std::invalid_argument on invalid options.
+  explicit FarGroundSeeds(const FarGroundSeedsOptions& options = FarGroundSeedsOptions());
+
+  /// Heights [m] for the vertices of `grid` that are unknown (`information` 0) from `points` (ground
+  /// frame [m], seen past the surface `heights`): the median height of the points within one
+  /// spacing of the vertex, where there are min_points and the median is min_drop_m below the
+  /// vertex's height. NaN for every other vertex.
+  Eigen::VectorXd seeds(const GroundGrid& grid, const Eigen::VectorXd& heights, const Eigen::VectorXd& information,
+                        const std::vector<Eigen::Vector3d>& points) const;
+
+  const FarGroundSeedsOptions& options() const { return options_; }
+
+ private:
+  FarGroundSeedsOptions options_;
+};
+
+}  // namespace stereo_ground_dem

@@ -1,0 +1,57 @@
+#include "stereo_ground_dem/FarGroundSeeds.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace stereo_ground_dem {
+
+bool FarGroundSeedsOptions::isValid(std::string* why) const {
+  auto bad = [why](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (min_far_pixels < 0) return bad("min_far_pixels must be >= 0");
+  if (min_points < 1) return bad("min_points must be >= 1");
+  if (!(min_drop_m >= 0.0)) return bad("min_drop_m must be >= 0");
+  return true;
+}
+
+FarGroundSeeds::FarGroundSeeds(const FarGroundSeedsOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.isValid(&why)) throw std::invalid_argument("FarGroundSeedsOptions: " + why);
+}
+
+Eigen::VectorXd FarGroundSeeds::seeds(const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                      const Eigen::VectorXd& information,
+                                      const std::vector<Eigen::Vector3d>& points) const {
+  const int n = grid.vertexCount();
+  Eigen::VectorXd out = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  if (n == 0 || points.empty()) return out;
+  // Each point counts for the (up to four) vertices of its grid cell: within one spacing of each.
+  std::vector<std::vector<double>> z(static_cast<size_t>(n));
+  const double s = grid.resolution_m;
+  for (const Eigen::Vector3d& p : points) {
+    if (!p.allFinite()) continue;
+    const double fc = (p.x() - grid.x0()) / s, fr = (p.y() - grid.y0()) / s;
+    if (!(fc >= 0.0 && fr >= 0.0 && fc <= grid.cols - 1 && fr <= grid.rows - 1)) continue;
+    const int c0 = static_cast<int>(fc), r0 = static_cast<int>(fr);
+    for (int dr = 0; dr <= 1; ++dr) {
+      for (int dc = 0; dc <= 1; ++dc) {
+        if (grid.contains(r0 + dr, c0 + dc)) z[static_cast<size_t>(grid.index(r0 + dr, c0 + dc))].push_back(p.z());
+      }
+    }
+  }
+  for (int v = 0; v < n; ++v) {
+    std::vector<double>& zv = z[static_cast<size_t>(v)];
+    if (information[v] > 0.0 || static_cast<int>(zv.size()) < options_.min_points) continue;
+    const auto mid = zv.begin() + static_cast<std::ptrdiff_t>(zv.size() / 2);
+    std::nth_element(zv.begin(), mid, zv.end());
+    const double median = *mid;
+    if (median <= heights[v] - options_.min_drop_m) out[v] = median;
+  }
+  return out;
+}
+
+}  // namespace stereo_ground_dem

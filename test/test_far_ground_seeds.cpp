@@ -1,0 +1,102 @@
+// FarGroundSeeds: starting heights for unknown vertices from the points of pixels that saw past
+// the surface hypothesis (the far side of a crest), and MapView's harmonic extension around them.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "stereo_ground_dem/FarGroundSeeds.hpp"
+#include "stereo_ground_dem/IncrementalEstimator.hpp"
+#include "stereo_ground_dem/MapView.hpp"
+#include "stereo_ground_dem/sim/StereoRenderer.hpp"
+
+using namespace stereo_ground_dem;
+
+namespace {
+
+// A 5 x 5 m window, 0.5 m spacing (11 x 11 vertices), its hypothesis 1 m high everywhere.
+struct SeedWindow {
+  GroundGrid grid = GroundGrid::covering(0.0, 5.0, 0.0, 5.0, 0.5);
+  Eigen::VectorXd heights = Eigen::VectorXd::Constant(grid.vertexCount(), 1.0);
+  Eigen::VectorXd info = Eigen::VectorXd::Zero(grid.vertexCount());
+  int at(double x, double y) const {
+    return grid.index(static_cast<int>(std::lround((y - grid.y0()) / 0.5)), static_cast<int>(std::lround((x - grid.x0()) / 0.5)));
+  }
+};
+
+}  // namespace
+
+// Points in the cells around (2, 2): each counts for its cell's four vertices, the vertex takes
+// their median; an outlier (a point of a tree's window) does not move it.
+TEST(FarGroundSeeds, UnknownVertexTakesTheMedianOfItsPoints) {
+  const SeedWindow w;
+  std::vector<Eigen::Vector3d> pts = {{2.1, 2.1, -0.50}, {1.9, 1.8, -0.40}, {2.2, 1.7, -0.45}, {1.8, 2.3, 3.0}};
+  const Eigen::VectorXd s = FarGroundSeeds().seeds(w.grid, w.heights, w.info, pts);
+  ASSERT_EQ(s.size(), w.grid.vertexCount());
+  EXPECT_NEAR(s[w.at(2.0, 2.0)], -0.40, 1e-12);  // all four points: median of -0.5, -0.45, -0.4, 3.0 (upper)
+  int seeded = 0;
+  for (int v = 0; v < s.size(); ++v) seeded += std::isfinite(s[v]) ? 1 : 0;
+  EXPECT_EQ(seeded, 1);  // the neighbours have fewer than min_points (3) points each
+}
+
+// Known vertices keep the map's heights; a median above the hypothesis (less than min_drop_m
+// below it) is no ground seen past it; points outside the window count for nothing.
+TEST(FarGroundSeeds, KnownHigherOrOutsideIsNotSeeded) {
+  SeedWindow w;
+  const std::vector<Eigen::Vector3d> low = {{2.1, 2.1, 0.0}, {1.9, 1.8, 0.1}, {2.2, 1.7, 0.05}};
+  w.info[w.at(2.0, 2.0)] = 4.0;
+  EXPECT_FALSE(std::isfinite(FarGroundSeeds().seeds(w.grid, w.heights, w.info, low)[w.at(2.0, 2.0)]));
+  w.info.setZero();
+  EXPECT_TRUE(std::isfinite(FarGroundSeeds().seeds(w.grid, w.heights, w.info, low)[w.at(2.0, 2.0)]));
+  const std::vector<Eigen::Vector3d> high = {{2.1, 2.1, 0.85}, {1.9, 1.8, 0.9}, {2.2, 1.7, 0.95}};  // 0.1 m below
+  EXPECT_FALSE(std::isfinite(FarGroundSeeds().seeds(w.grid, w.heights, w.info, high)[w.at(2.0, 2.0)]));
+  const std::vector<Eigen::Vector3d> outside = {{7.1, 2.1, 0.0}, {-1.9, 1.8, 0.0}, {2.2, 5.7, 0.0},
+                                                {std::numeric_limits<double>::quiet_NaN(), 2.0, 0.0}};
+  EXPECT_EQ(FarGroundSeeds().seeds(w.grid, w.heights, w.info, outside).array().isFinite().count(), 0);
+  FarGroundSeedsOptions bad;
+  bad.min_points = 0;
+  EXPECT_THROW(FarGroundSeeds{bad}, std::invalid_argument);
+}
+
+// A crest: the map knows level ground up to x = 12 m, the far side is seeded 1 m lower at
+// x = 20..24 m. The seeds are kept (information 0: no evidence for the map prior), and the hidden
+// band between follows the harmonic extension, between the two. Its 60 sweeps start from the plane
+// fitted to the known heights and do not converge over the 16-vertex band: measured at x = 16 m,
+// -0.286 m on the middle row (the converged, linear band: -0.5). Without seeds, the band continues
+// the known level ground.
+TEST(MapView, SeedsAreKeptAndTheBandBetweenFollows) {
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  IncrementalEstimatorOptions o;
+  ElevationMapOptions mo;
+  mo.resolution_m = o.stereo.grid_resolution_m;
+  ElevationMap map(mo);
+  const GroundGrid known = GroundGrid::covering(4.0, 12.0, -10.0, 10.0, o.stereo.grid_resolution_m);
+  map.fuse(known, Eigen::VectorXd::Zero(known.vertexCount()), Eigen::VectorXd::Zero(known.vertexCount()),
+           Eigen::VectorXd::Constant(known.vertexCount(), 1e4),
+           std::vector<uint8_t>(static_cast<size_t>(known.vertexCount()), 1), 0);
+  const MapView view(rig, o.stereo, o.max_init_std_m, o.ground_plane, map);
+  const GroundGrid w = GroundGrid::covering(4.0, 24.0, -10.0, 10.0, o.stereo.grid_resolution_m);
+  Eigen::VectorXd seeds = Eigen::VectorXd::Constant(w.vertexCount(), std::numeric_limits<double>::quiet_NaN());
+  for (int v = 0; v < w.vertexCount(); ++v)
+    if (w.position(v).x() >= 20.0 - 1e-9) seeds[v] = -1.0;
+  Eigen::VectorXd heights, information, plain, plain_info;
+  view.initialHeights(w, Eigen::Isometry3d::Identity(), &heights, &information, &seeds);
+  view.initialHeights(w, Eigen::Isometry3d::Identity(), &plain, &plain_info);
+  double mid = std::numeric_limits<double>::quiet_NaN();
+  for (int v = 0; v < w.vertexCount(); ++v) {
+    const Eigen::Vector2d xy = w.position(v);
+    EXPECT_EQ(information[v], plain_info[v]);
+    if (std::isfinite(seeds[v])) EXPECT_EQ(heights[v], -1.0);
+    if (xy.x() <= 12.0) EXPECT_NEAR(heights[v], 0.0, 1e-9);
+    if (xy.x() > 12.0 && xy.x() < 20.0) {
+      EXPECT_LT(heights[v], 0.0);
+      EXPECT_GT(heights[v], -1.0);
+    }
+    if (std::abs(xy.x() - 16.0) < 1e-9 && std::abs(xy.y()) < 1e-9) mid = heights[v];
+    EXPECT_NEAR(plain[v], 0.0, 1e-6);
+  }
+  std::printf("[ seeds    ] the band's middle at x = 16 m: %.3f m\n", mid);
+  EXPECT_NEAR(mid, -0.29, 0.06);
+}
