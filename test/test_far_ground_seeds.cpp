@@ -62,10 +62,10 @@ TEST(FarGroundSeeds, KnownHigherOrOutsideIsNotSeeded) {
 
 // A crest: the map knows level ground up to x = 12 m, the far side is seeded 1 m lower at
 // x = 20..24 m. The seeds are kept (information 0: no evidence for the map prior), and the hidden
-// band between follows the harmonic extension, between the two. Its 60 sweeps start from the plane
-// fitted to the known heights and do not converge over the 16-vertex band: measured at x = 16 m,
-// -0.286 m on the middle row (the converged, linear band: -0.5). Without seeds, the band continues
-// the known level ground.
+// band between is the converged harmonic extension, a straight ramp between the two: -0.5 m at
+// x = 16 m (measured -0.500; the 60 Gauss-Seidel sweeps used without seeds left it at -0.286, high
+// enough to hide the far side from the camera). Without seeds, the band continues the known level
+// ground.
 TEST(MapView, SeedsAreKeptAndTheBandBetweenFollows) {
   const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
   IncrementalEstimatorOptions o;
@@ -98,5 +98,5 @@ TEST(MapView, SeedsAreKeptAndTheBandBetweenFollows) {
     EXPECT_NEAR(plain[v], 0.0, 1e-6);
   }
   std::printf("[ seeds    ] the band's middle at x = 16 m: %.3f m\n", mid);
-  EXPECT_NEAR(mid, -0.29, 0.06);
+  EXPECT_NEAR(mid, -0.5, 0.01);
 }
