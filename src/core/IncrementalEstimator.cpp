@@ -84,6 +84,19 @@ const IncrementalEstimatorOptions& validated(const IncrementalEstimatorOptions& 
   if (!o.isValid(&why)) throw std::invalid_argument("IncrementalEstimatorOptions: " + why);
   return o;
 }
+// ORs `masks` (per pyramid level) into `into`, level by level: an empty level takes a copy (never
+// a shared buffer: `into` is OR-ed in place later), masks not the size of `pyramid`'s level or
+// empty add nothing.
+void addMasks(const std::vector<cv::Mat>& masks, const ImagePyramid& pyramid, std::vector<cv::Mat>* into) {
+  const size_t n = std::min(masks.size(), static_cast<size_t>(pyramid.levels()));
+  if (into->size() < n) into->resize(n);
+  for (size_t l = 0; l < n; ++l) {
+    if (masks[l].empty() || masks[l].size() != pyramid.level(static_cast<int>(l)).image.size()) continue;
+    cv::Mat& m = (*into)[l];
+    if (m.empty()) m = masks[l].clone();
+    else cv::bitwise_or(m, masks[l], m);
+  }
+}
 }  // namespace
 
 IncrementalEstimator::IncrementalEstimator(const StereoRig& rig, const IncrementalEstimatorOptions& options)
@@ -469,12 +482,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // The temporal pairs skip the outline (above), the texture that moved with the vehicle in the
   // last two frames (carry_moving_texture) and, after the test below, this frame's moving texture.
   if (options_.carry_moving_texture && carried_moving_.size() == static_cast<size_t>(pl->levels())) {
-    temporal_skipped.resize(carried_moving_.size());
-    for (size_t ml = 0; ml < carried_moving_.size(); ++ml) {
-      if (carried_moving_[ml].size() != pl->level(static_cast<int>(ml)).image.size()) continue;
-      if (temporal_skipped[ml].empty()) temporal_skipped[ml] = carried_moving_[ml].clone();
-      else cv::bitwise_or(temporal_skipped[ml], carried_moving_[ml], temporal_skipped[ml]);
-    }
+    addMasks(carried_moving_, *pl, &temporal_skipped);
     const size_t tl = static_cast<size_t>(std::min(options_.temporal_consistency.level, pl->levels() - 1));
     res.carried_moving_pixels = cv::countNonZero(carried_moving_[tl]);
   }
@@ -720,11 +728,7 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
                            state.photometric[0], state.photometric[1], stereo_.rectification());
       res.moving_pixels = moving.pixels;
       if (!moving.masks.empty()) {
-        for (size_t ml = 0; ml < moving.masks.size(); ++ml) {
-          if (ml >= temporal_skipped.size()) temporal_skipped.push_back(moving.masks[ml]);
-          else if (temporal_skipped[ml].empty()) temporal_skipped[ml] = moving.masks[ml];
-          else if (!moving.masks[ml].empty()) cv::bitwise_or(temporal_skipped[ml], moving.masks[ml], temporal_skipped[ml]);
-        }
+        addMasks(moving.masks, pl, &temporal_skipped);
         targets[1].reference_excluded = &temporal_skipped;
         targets[2].reference_excluded = &temporal_skipped;
         repeat = true;
@@ -739,12 +743,7 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
                                  .hidden(rho, rho_prev, rig_.atLevel(l), prev_c_T_g * state.camera_T_ground.inverse());
       res.hidden_pixels = cv::countNonZero(hidden);
       if (res.hidden_pixels > 0) {
-        const std::vector<cv::Mat> masks = pl.maskOnEveryLevel(hidden, l);
-        temporal_skipped.resize(masks.size());
-        for (size_t ml = 0; ml < masks.size(); ++ml) {
-          if (temporal_skipped[ml].empty()) temporal_skipped[ml] = masks[ml];
-          else cv::bitwise_or(temporal_skipped[ml], masks[ml], temporal_skipped[ml]);
-        }
+        addMasks(pl.maskOnEveryLevel(hidden, l), pl, &temporal_skipped);
         targets[1].reference_excluded = &temporal_skipped;
         targets[2].reference_excluded = &temporal_skipped;
         // Enough of it to matter: this level once more (a few pixels behind small bumps ride along

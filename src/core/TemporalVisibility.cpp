@@ -36,11 +36,11 @@ cv::Mat TemporalVisibility::hidden(const cv::Mat& reference_rho, const cv::Mat& 
   for (int v = 0; v < h; ++v) {
     const float* rho = reference_rho.ptr<float>(v);
     uint8_t* m = mask.ptr<uint8_t>(v);
-    const Eigen::Vector3d ray_v(0.0, (v - rig.cy) / rig.fy, 1.0);
+    const double ray_y = (v - rig.cy) / rig.fy;
     for (int u = 0; u < w; ++u) {
       if (!(rho[u] > 0.0f)) continue;
       // the point X = ray / rho; in the target, Y = R X + t, so rho * Y = R ray + rho t
-      const Eigen::Vector3d ray(( u - rig.cx) / rig.fx, ray_v.y(), 1.0);
+      const Eigen::Vector3d ray((u - rig.cx) / rig.fx, ray_y, 1.0);
       const Eigen::Vector3d y = R * ray + static_cast<double>(rho[u]) * t;  // Y scaled by rho
       if (!(y.z() > 0.0)) continue;
       const double ut = rig.fx * y.x() / y.z() + rig.cx, vt = rig.fy * y.y() / y.z() + rig.cy;
