@@ -58,3 +58,24 @@ TEST(FarGroundSeeds, KnownHigherOrOutsideIsNotSeeded) {
   bad.min_points = 0;
   EXPECT_THROW(FarGroundSeeds{bad}, std::invalid_argument);
 }
+
+// A camera 2 m above (0, 0) sees a point at (10, 0, 0): the ray falls 0.2 m per metre. Its first
+// 80 % (ray_share) bounds the vertices it passes over at its height there (x = 5: 1.0 m, x = 7.5:
+// 0.5 m); the last 20 % (the point's depth is rough) and vertices off the ray stay unbounded.
+TEST(FarGroundSeeds, RaysBoundTheGroundTheyPassOver) {
+  const GroundGrid grid = GroundGrid::covering(0.0, 12.0, -2.0, 2.0, 0.5);
+  const Eigen::Vector3d camera(0.0, 0.0, 2.0);
+  const Eigen::VectorXd c = FarGroundSeeds().ceilings(grid, camera, {Eigen::Vector3d(10.0, 0.0, 0.0)});
+  auto at = [&](double x, double y) {
+    return c[grid.index(static_cast<int>(std::lround((y - grid.y0()) / 0.5)), static_cast<int>(std::lround((x - grid.x0()) / 0.5)))];
+  };
+  EXPECT_NEAR(at(5.0, 0.0), 1.0, 1e-9);
+  EXPECT_NEAR(at(7.5, 0.0), 0.5, 1e-9);
+  EXPECT_NEAR(at(8.0, 0.0), 0.4, 1e-9);  // the last sample: 80 % of the way
+  EXPECT_TRUE(std::isinf(at(9.0, 0.0)));
+  EXPECT_TRUE(std::isinf(at(5.0, 1.0)));
+  // a second, lower ray over the same vertices: the lowest bound counts
+  const Eigen::VectorXd c2 =
+      FarGroundSeeds().ceilings(grid, camera, {Eigen::Vector3d(10.0, 0.0, 0.0), Eigen::Vector3d(5.0, 0.0, 0.0)});
+  EXPECT_NEAR(c2[grid.index(static_cast<int>(std::lround((0.0 - grid.y0()) / 0.5)), 6)], 2.0 - 0.4 * 3.0, 1e-9);  // x = 3
+}

@@ -32,6 +32,11 @@ struct FarGroundSeedsOptions {
   /// ... and only where their median lies at least this far below the surface hypothesis (the
   /// pixels looked past it, so their ground is lower) [m].
   double min_drop_m = 0.2;
+  /// The share of each far ray, from the camera, that bounds the ground (ceilings()) [-].
+  double ray_share = 0.8;
+  /// A vertex whose height stands more than this above its ceiling starts at the ceiling (known
+  /// or not: the map's climb continued past the crest and fused from afar) [m].
+  double ceiling_margin_m = 0.1;
 
   bool isValid(std::string* why) const;
 };
@@ -47,6 +52,14 @@ class FarGroundSeeds {
   /// vertex's height. NaN for every other vertex.
   Eigen::VectorXd seeds(const GroundGrid& grid, const Eigen::VectorXd& heights, const Eigen::VectorXd& information,
                         const std::vector<Eigen::Vector3d>& points) const;
+
+  /// Upper bounds [m] on the ground at the vertices of `grid` from the rays of the pixels that saw
+  /// past the surface: the ray from `camera` (ground frame) to each of `points` passes above the
+  /// ground, so a vertex it passes over (nearest vertex of samples every half spacing) lies no
+  /// higher than the ray there. Only the first ray_share of each ray counts (the point's depth is
+  /// rough). The lowest bound per vertex; +infinity where no ray passes.
+  Eigen::VectorXd ceilings(const GroundGrid& grid, const Eigen::Vector3d& camera,
+                           const std::vector<Eigen::Vector3d>& points) const;
 
   const FarGroundSeedsOptions& options() const { return options_; }
 

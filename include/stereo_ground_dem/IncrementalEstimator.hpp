@@ -197,7 +197,8 @@ struct FrameResult {
   double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level
   int far_pixels = 0;                    ///< ... seeing past the surface (far_depth_ratio): excluded, no obstacle
-  int far_seeded_vertices = 0;           ///< unknown vertices started from those pixels' points (FarGroundSeeds)
+  int far_seeded_vertices = 0;           ///< vertices started from those pixels' points or rays (FarGroundSeeds)
+  int far_carved_vertices = 0;           ///< ... of them: at the ray, which passed under their height
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).
   VerticalMisalignment rectification;

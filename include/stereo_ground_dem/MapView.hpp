@@ -34,8 +34,8 @@ class MapView {
   /// The starting heights on `window` and their information: the map's, where known to better
   /// than max_init_std_m; elsewhere a plane fitted to the known ones (the level plane under the
   /// camera without 20 of them) relaxed towards the harmonic extension of the known heights (60
-  /// Gauss-Seidel sweeps), with information 0. Finite `seeds` (FarGroundSeeds) stand for the map's
-  /// heights where it does not know them: they are kept with information 0, and the unknown
+  /// Gauss-Seidel sweeps), with information 0. Finite `seeds` (FarGroundSeeds) replace the map's
+  /// heights, known or not: they are kept with information 0, and the unknown
   /// heights are then the converged harmonic extension (sparse Cholesky), so that the band between
   /// the known ground and the seeds does not stand above both.
   void initialHeights(const GroundGrid& window, const Eigen::Isometry3d& camera_T_ground, Eigen::VectorXd* heights,

@@ -15,6 +15,8 @@ bool FarGroundSeedsOptions::isValid(std::string* why) const {
   if (min_far_pixels < 0) return bad("min_far_pixels must be >= 0");
   if (min_points < 1) return bad("min_points must be >= 1");
   if (!(min_drop_m >= 0.0)) return bad("min_drop_m must be >= 0");
+  if (!(ray_share > 0.0 && ray_share <= 1.0)) return bad("ray_share must be in (0, 1]");
+  if (!(ceiling_margin_m >= 0.0)) return bad("ceiling_margin_m must be >= 0");
   return true;
 }
 
@@ -50,6 +52,28 @@ Eigen::VectorXd FarGroundSeeds::seeds(const GroundGrid& grid, const Eigen::Vecto
     std::nth_element(zv.begin(), mid, zv.end());
     const double median = *mid;
     if (median <= heights[v] - options_.min_drop_m) out[v] = median;
+  }
+  return out;
+}
+
+Eigen::VectorXd FarGroundSeeds::ceilings(const GroundGrid& grid, const Eigen::Vector3d& camera,
+                                         const std::vector<Eigen::Vector3d>& points) const {
+  const int n = grid.vertexCount();
+  Eigen::VectorXd out = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  const double s = grid.resolution_m;
+  for (const Eigen::Vector3d& p : points) {
+    if (!p.allFinite()) continue;
+    const Eigen::Vector3d d = options_.ray_share * (p - camera);
+    const double len_xy = d.head<2>().norm();
+    const int steps = static_cast<int>(std::ceil(len_xy / (0.5 * s)));
+    for (int k = 1; k <= steps; ++k) {
+      const Eigen::Vector3d q = camera + (static_cast<double>(k) / steps) * d;
+      const int c = static_cast<int>(std::lround((q.x() - grid.x0()) / s));
+      const int r = static_cast<int>(std::lround((q.y() - grid.y0()) / s));
+      if (!grid.contains(r, c)) continue;
+      double& b = out[grid.index(r, c)];
+      b = std::min(b, q.z());
+    }
   }
   return out;
 }

@@ -45,8 +45,8 @@ void MapView::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camer
   const double min_info = 1.0 / (max_init_std_m_ * max_init_std_m_);
   int known = 0, n_seeded = 0;
   for (int v = 0; v < w.vertexCount(); ++v) {
-    if (!std::isfinite((*heights)[v]) || (*information)[v] < min_info) {
-      const bool seeded = seeds != nullptr && seeds->size() == w.vertexCount() && std::isfinite((*seeds)[v]);
+    const bool seeded = seeds != nullptr && seeds->size() == w.vertexCount() && std::isfinite((*seeds)[v]);
+    if (!std::isfinite((*heights)[v]) || (*information)[v] < min_info || seeded) {
       (*heights)[v] = seeded ? (*seeds)[v] : std::numeric_limits<double>::quiet_NaN();
       (*information)[v] = 0.0;
       known += seeded ? 1 : 0;

@@ -46,7 +46,7 @@ class DemDiagnostics {
     int carried_moving_pixels = 0;  ///< texture moving with the vehicle, skipped from the start (test level)
     int hidden_pixels = 0;          ///< ground the previous camera did not see (TemporalVisibility; temporal level)
     int far_pixels = 0;             ///< ground seen past the surface (far_depth_ratio; obstacle test level)
-    int far_seeded_vertices = 0;    ///< unknown vertices started from its points (FarGroundSeeds)
+    int far_seeded_vertices = 0;    ///< vertices started from its points or rays (FarGroundSeeds)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
