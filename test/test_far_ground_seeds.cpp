@@ -79,3 +79,29 @@ TEST(FarGroundSeeds, RaysBoundTheGroundTheyPassOver) {
       FarGroundSeeds().ceilings(grid, camera, {Eigen::Vector3d(10.0, 0.0, 0.0), Eigen::Vector3d(5.0, 0.0, 0.0)});
   EXPECT_NEAR(c2[grid.index(static_cast<int>(std::lround((0.0 - grid.y0()) / 0.5)), 6)], 2.0 - 0.4 * 3.0, 1e-9);  // x = 3
 }
+
+// starts(): a seed where an unknown vertex has one; elsewhere a vertex, known or not, standing more
+// than ceiling_margin_m (0.1 m) above a far ray starts at the ray; vertices under it keep theirs.
+TEST(FarGroundSeeds, StartsAreSeedsThenCeilings) {
+  const GroundGrid grid = GroundGrid::covering(0.0, 12.0, -2.0, 2.0, 0.5);
+  auto at = [&](double x, double y) {
+    return grid.index(static_cast<int>(std::lround((y - grid.y0()) / 0.5)), static_cast<int>(std::lround((x - grid.x0()) / 0.5)));
+  };
+  Eigen::VectorXd heights = Eigen::VectorXd::Constant(grid.vertexCount(), 0.3);
+  Eigen::VectorXd info = Eigen::VectorXd::Constant(grid.vertexCount(), 5.0);
+  heights[at(5.0, 0.0)] = 1.0;  // within the margin of the lowest ray (0.93-1.0 m there): kept
+  heights[at(7.5, 0.0)] = 0.7;   // 0.2 m above the ray (0.5 m): carved, though known
+  info[at(10.0, 0.0)] = 0.0;     // unknown, with three points around it: seeded
+  const std::vector<Eigen::Vector3d> pts = {{10.0, 0.0, 0.0}, {10.1, 0.1, -0.1}, {9.9, -0.1, 0.0}};
+  const FarGroundStarts s = FarGroundSeeds().starts(grid, heights, info, Eigen::Vector3d(0.0, 0.0, 2.0), pts);
+  ASSERT_EQ(s.heights.size(), grid.vertexCount());
+  EXPECT_FALSE(std::isfinite(s.heights[at(5.0, 0.0)]));
+  const Eigen::VectorXd ceiling = FarGroundSeeds().ceilings(grid, Eigen::Vector3d(0.0, 0.0, 2.0), pts);
+  EXPECT_EQ(s.heights[at(7.5, 0.0)], ceiling[at(7.5, 0.0)]);
+  EXPECT_NEAR(s.heights[at(7.5, 0.0)], 0.42, 0.01);  // the lowest ray's nearest sample (x = 7.59)
+  EXPECT_NEAR(s.heights[at(10.0, 0.0)], 0.0, 1e-12);
+  EXPECT_FALSE(std::isfinite(s.heights[at(2.0, 1.5)]));  // off every ray
+  // the 0.3 m vertices stand below every ray (no lower than ~0.3 m at 80 % of the way): only x = 7.5
+  EXPECT_EQ(s.carved_vertices, 1);
+  EXPECT_EQ(s.seeded_vertices, 2);
+}

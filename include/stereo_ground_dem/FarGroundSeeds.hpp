@@ -9,7 +9,9 @@
 /// far side stays unmapped until the camera is over the crest (the rendered `rolling` scene lost
 /// 10-15 % of its coverage within 20 m that way). Their best fronto-parallel window's disparity
 /// gives a rough 3-D point each; the unknown vertices under enough of them start at those points'
-/// median height, the hidden band between the crest and them follows by the harmonic extension
+/// median height (seeds()), and any vertex, known or not, standing above one of their rays starts
+/// at the ray (ceilings(): the climb the map continued past the crest and fused from afar). The
+/// hidden band between the crest and them follows by the harmonic extension
 /// (MapView::initialHeights), and the obstacle test runs again on that surface: the far side's
 /// pixels then fit it and the joint alignment refines it like any other new ground.
 
@@ -41,6 +43,14 @@ struct FarGroundSeedsOptions {
   bool isValid(std::string* why) const;
 };
 
+/// What FarGroundSeeds::starts() gives the frame: starting heights and how they came about.
+struct FarGroundStarts {
+  /// Starting height [m] per vertex of the window; NaN where the map's own start stands.
+  Eigen::VectorXd heights;
+  int seeded_vertices = 0;  ///< finite entries of `heights` (seeds and ceilings together)
+  int carved_vertices = 0;  ///< of which a ceiling (a far ray passing under the vertex's height)
+};
+
 class FarGroundSeeds {
  public:
   /// Throws std::invalid_argument on invalid options.
@@ -60,6 +70,12 @@ class FarGroundSeeds {
   /// rough). The lowest bound per vertex; +infinity where no ray passes.
   Eigen::VectorXd ceilings(const GroundGrid& grid, const Eigen::Vector3d& camera,
                            const std::vector<Eigen::Vector3d>& points) const;
+
+  /// The starts for one frame: seeds() where an unknown vertex has them; elsewhere, a vertex
+  /// (known or not) whose height stands more than ceiling_margin_m above its ceilings() starts at
+  /// the ceiling. `camera` is the camera centre in the ground frame.
+  FarGroundStarts starts(const GroundGrid& grid, const Eigen::VectorXd& heights, const Eigen::VectorXd& information,
+                         const Eigen::Vector3d& camera, const std::vector<Eigen::Vector3d>& points) const;
 
   const FarGroundSeedsOptions& options() const { return options_; }
 

@@ -78,4 +78,20 @@ Eigen::VectorXd FarGroundSeeds::ceilings(const GroundGrid& grid, const Eigen::Ve
   return out;
 }
 
+FarGroundStarts FarGroundSeeds::starts(const GroundGrid& grid, const Eigen::VectorXd& heights,
+                                       const Eigen::VectorXd& information, const Eigen::Vector3d& camera,
+                                       const std::vector<Eigen::Vector3d>& points) const {
+  FarGroundStarts out;
+  out.heights = seeds(grid, heights, information, points);
+  const Eigen::VectorXd ceiling = ceilings(grid, camera, points);
+  for (int v = 0; v < grid.vertexCount(); ++v) {
+    if (!std::isfinite(out.heights[v]) && heights[v] > ceiling[v] + options_.ceiling_margin_m) {
+      out.heights[v] = ceiling[v];
+      ++out.carved_vertices;
+    }
+  }
+  out.seeded_vertices = static_cast<int>(out.heights.array().isFinite().count());
+  return out;
+}
+
 }  // namespace stereo_ground_dem

@@ -528,22 +528,14 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
   if (options_.far_seeds.enabled && obstacles.far_pixels >= options_.far_seeds.min_far_pixels) {
     // Ground seen past the surface (a crest's far side): its unknown vertices start at its points,
-    // and the test runs again on that surface (FarGroundSeeds).
-    const FarGroundSeeds far_seeds(options_.far_seeds);
+    // vertices its rays pass under start at the ray, and the test runs again on that surface.
     const std::vector<Eigen::Vector3d> far = obstacles.farPoints(rig_, state.camera_T_ground.inverse());
-    Eigen::VectorXd seeds = far_seeds.seeds(window, heights, info, far);
-    // Vertices, known or not, that those pixels' rays pass under (the map's climb continued past
-    // the crest, fused from afar): they start at the ray, no higher (FarGroundSeeds::ceilings()).
-    const Eigen::VectorXd ceiling = far_seeds.ceilings(window, state.camera_T_ground.inverse().translation(), far);
-    for (int v = 0; v < window.vertexCount(); ++v) {
-      if (!std::isfinite(seeds[v]) && heights[v] > ceiling[v] + options_.far_seeds.ceiling_margin_m) {
-        seeds[v] = ceiling[v];
-        ++res.far_carved_vertices;
-      }
-    }
-    res.far_seeded_vertices = static_cast<int>(seeds.array().isFinite().count());
+    const FarGroundStarts starts = FarGroundSeeds(options_.far_seeds)
+                                       .starts(window, heights, info, state.camera_T_ground.inverse().translation(), far);
+    res.far_seeded_vertices = starts.seeded_vertices;
+    res.far_carved_vertices = starts.carved_vertices;
     if (res.far_seeded_vertices > 0) {
-      view.initialHeights(window, state.camera_T_ground, &heights, &info, &seeds);
+      view.initialHeights(window, state.camera_T_ground, &heights, &info, &starts.heights);
       state.heights = heights;
       prior.mean = heights;
       prior.information = info * options_.prior_weight;
