@@ -1,7 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
+#include <vector>
 
 #include "stereo_ground_dem/GroundGrid.hpp"
 
@@ -109,4 +112,23 @@ TEST(GroundGrid, CoveringRefusesExtentsBeyondIntRange) {
   const GroundGrid far = GroundGrid::covering(1e8, 1e8 + 10, 0, 10, 0.5, 8);
   EXPECT_EQ(far.col0, 200000000);
   EXPECT_EQ(far.cols, 25);
+}
+
+// A point counts for the four vertices of its cell; on the grid's last row or column, for the two
+// (or one) that exist; outside, for none.
+TEST(GroundGrid, CellVerticesOfAPoint) {
+  const GroundGrid g = GroundGrid::covering(0.0, 2.0, 0.0, 1.0, 0.5);  // 5 x 3 vertices
+  std::vector<int> v;
+  const auto collect = [&](double x, double y) {
+    v.clear();
+    g.forCellVertices(x, y, [&](int i) { v.push_back(i); });
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  EXPECT_EQ(collect(0.7, 0.2), (std::vector<int>{g.index(0, 1), g.index(0, 2), g.index(1, 1), g.index(1, 2)}));
+  EXPECT_EQ(collect(2.0, 0.2), (std::vector<int>{g.index(0, 4), g.index(1, 4)}));
+  EXPECT_EQ(collect(2.0, 1.0), (std::vector<int>{g.index(2, 4)}));
+  EXPECT_TRUE(collect(2.1, 0.2).empty());
+  EXPECT_TRUE(collect(0.5, -0.01).empty());
+  EXPECT_TRUE(collect(std::numeric_limits<double>::quiet_NaN(), 0.2).empty());
 }

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "stereo_ground_dem/IncrementalEstimator.hpp"
@@ -597,4 +598,44 @@ TEST(Obstacles, PointsSeenPastTheSurfaceLieOnTheGround) {
   EXPECT_EQ(cv::countNonZero(one.far_disparity != near.far_disparity), 0);
   // with the true surface, nothing is seen past it and there are no such points
   EXPECT_LT(in.detect(o).farPoints(in.c.rig, in.r.ground_T_camera).size(), pts.size() / 100);
+}
+
+// Ground the hypothesis holds too far away (the surface's inverse depth at 0.6x: ground rising
+// out of it, as a hill ahead the mesh has not climbed) is taken for upright by the test; the
+// flagged pixels' own points (uprightPoints(), disparities to a fraction of a pixel) lie on the
+// true ground, which RisingGroundSeeds reads (measured: median |height| within 15 m 3.0 cm;
+// whole-pixel disparities at the test level put the same pixels' points 5.3 cm off).
+TEST(Obstacles, GroundTakenForUprightKeepsItsOwnPoints) {
+  const DetectorInput in;
+  ASSERT_TRUE(in.r.ok) << in.r.message;
+  ObstacleDetectorOptions o;
+  o.num_threads = 2;
+  const cv::Mat far_rho = in.rho * 0.6;
+  const ObstacleMask m = ObstacleDetector(o).detect(in.left, in.right, in.c.rig, in.r.photometric, far_rho);
+  const Eigen::Isometry3d g_t_c = in.r.ground_T_camera;
+  const std::vector<Eigen::Vector3d> pts = m.uprightPoints(in.c.rig, g_t_c);
+  ASSERT_GT(pts.size(), 1000u);
+  EXPECT_LE(static_cast<int>(pts.size()), m.pixels);
+  // the same pixels at whole disparities
+  cv::Mat whole = m.upright_disparity.clone();
+  const float scale = std::ldexp(1.0f, m.level);
+  for (int v = 0; v < whole.rows; ++v)
+    for (int u = 0; u < whole.cols; ++u) {
+      float& d = whole.at<float>(v, u);
+      if (d > 0.0f) d = std::round(d / scale) * scale;
+    }
+  ObstacleMask w = m;
+  w.upright_disparity = whole;
+  auto medianAbsHeight = [&](const std::vector<Eigen::Vector3d>& p, double max_range_m) {
+    std::vector<double> dz;
+    for (const Eigen::Vector3d& q : p)
+      if ((q - g_t_c.translation()).head<2>().norm() < max_range_m) dz.push_back(std::abs(q.z()));
+    std::sort(dz.begin(), dz.end());
+    return dz.empty() ? 1e9 : dz[dz.size() / 2];
+  };
+  const double own = medianAbsHeight(pts, 15.0), rounded = medianAbsHeight(w.uprightPoints(in.c.rig, g_t_c), 15.0);
+  std::printf("[ rising   ] %zu points of ground taken for upright: |height| within 15 m median %.3f m (whole pixels %.3f m)\n",
+              pts.size(), own, rounded);
+  EXPECT_LT(own, 0.05);
+  EXPECT_LT(own, 0.7 * rounded);
 }

@@ -61,6 +61,17 @@ struct GroundGrid {
   double yOfRow(int r) const { return (row0 + r) * resolution_m; }
   Eigen::Vector2d position(int v) const { return {xOfCol(colOf(v)), yOfRow(rowOf(v))}; }
   bool contains(int r, int c) const { return r >= 0 && c >= 0 && r < rows && c < cols; }
+  /// Calls f(v) for each vertex v of the cell holding ground point (x, y) (up to four: a point
+  /// on the cell's far edge also counts for the next cell's vertices); nothing outside the grid.
+  template <typename F>
+  void forCellVertices(double x, double y, F&& f) const {
+    const double fc = (x - x0()) / resolution_m, fr = (y - y0()) / resolution_m;
+    if (!(fc >= 0.0 && fr >= 0.0 && fc <= cols - 1 && fr <= rows - 1)) return;
+    const int c0 = static_cast<int>(fc), r0 = static_cast<int>(fr);
+    for (int dr = 0; dr <= 1; ++dr)
+      for (int dc = 0; dc <= 1; ++dc)
+        if (contains(r0 + dr, c0 + dc)) f(index(r0 + dr, c0 + dc));
+  }
   /// The three vertex indices of triangle t, in the order given in the file comment.
   std::array<int, 3> triangle(int t) const;
 

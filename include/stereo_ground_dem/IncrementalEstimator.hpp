@@ -21,6 +21,7 @@
 #include "stereo_ground_dem/DisparityPlaneFit.hpp"
 #include "stereo_ground_dem/ElevationMap.hpp"
 #include "stereo_ground_dem/FarGroundSeeds.hpp"
+#include "stereo_ground_dem/RisingGroundSeeds.hpp"
 #include "stereo_ground_dem/EstimatorState.hpp"
 #include "stereo_ground_dem/ImagePyramid.hpp"
 #include "stereo_ground_dem/MapView.hpp"
@@ -75,6 +76,8 @@ struct IncrementalEstimatorOptions {
   /// a crest), the unknown vertices under their rough points start at those points' heights and
   /// the obstacle test runs again on that surface (docs/results.md, "The far side of the crest").
   FarGroundSeedsOptions far_seeds;
+  /// Ground rising out of the surface, which the obstacle test took for upright (an embankment)
+  RisingGroundSeedsOptions rising_seeds;
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
@@ -198,6 +201,7 @@ struct FrameResult {
   int obstacle_pixels = 0;               ///< at the obstacle test level
   int far_pixels = 0;                    ///< ... seeing past the surface (far_depth_ratio): excluded, no obstacle
   int far_seeded_vertices = 0;           ///< vertices started from those pixels' points or rays (FarGroundSeeds)
+  int rising_seeded_vertices = 0;        ///< vertices started on ground rising out of the surface (RisingGroundSeeds)
   int far_carved_vertices = 0;           ///< ... of them: at the ray, which passed under their height
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).

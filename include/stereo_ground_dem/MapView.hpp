@@ -37,9 +37,11 @@ class MapView {
   /// Gauss-Seidel sweeps), with information 0. Finite `seeds` (FarGroundSeeds) replace the map's
   /// heights, known or not: they are kept with information 0, and the unknown
   /// heights are then the converged harmonic extension (sparse Cholesky), so that the band between
-  /// the known ground and the seeds does not stand above both.
+  /// the known ground and the seeds does not stand above both (`converged_with_seeds`; false: the
+  /// 60 sweeps as without seeds).
   void initialHeights(const GroundGrid& window, const Eigen::Isometry3d& camera_T_ground, Eigen::VectorXd* heights,
-                      Eigen::VectorXd* information, const Eigen::VectorXd* seeds = nullptr) const;
+                      Eigen::VectorXd* information, const Eigen::VectorXd* seeds = nullptr,
+                      bool converged_with_seeds = true) const;
 
   /// The pose whose height and attitude above the ground come from the pair's dominant plane
   /// (DisparityPlaneFit on the sparse matches of `check`) and the map's local plane 4-15 m ahead,

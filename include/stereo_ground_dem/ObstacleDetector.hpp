@@ -86,11 +86,17 @@ struct ObstacleMask {
   int pixels = 0;                 ///< obstacle pixels at the test level
   int far_pixels = 0;             ///< pixels seeing past the surface (far_depth_ratio), not obstacles
   cv::Mat far_disparity;          ///< at the test level: their best window's disparity in level-0 pixels, 0 = none
+  /// At the test level: each pixel the upright test flagged, its own best window's disparity in
+  /// level-0 pixels (`disparity` gives runs their foot's instead), 0 = none.
+  cv::Mat upright_disparity;
 
   /// The 3-D points [m] of the obstacle pixels (from their disparity) in the ground frame.
   std::vector<Eigen::Vector3d> groundPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;
   /// The 3-D points [m] of the pixels seeing past the surface (from far_disparity), ground frame.
   std::vector<Eigen::Vector3d> farPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;
+  /// The 3-D points [m] of the flagged pixels from their own windows' disparity (upright_disparity),
+  /// ground frame: where they lie, not where a thing would stand (RisingGroundSeeds).
+  std::vector<Eigen::Vector3d> uprightPoints(const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera) const;
 };
 
 /// Per-vertex obstacle evidence of one frame on a grid.

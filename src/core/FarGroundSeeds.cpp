@@ -33,17 +33,8 @@ Eigen::VectorXd FarGroundSeeds::seeds(const GroundGrid& grid, const Eigen::Vecto
   if (n == 0 || points.empty()) return out;
   // Each point counts for the (up to four) vertices of its grid cell: within one spacing of each.
   std::vector<std::vector<double>> z(static_cast<size_t>(n));
-  const double s = grid.resolution_m;
   for (const Eigen::Vector3d& p : points) {
-    if (!p.allFinite()) continue;
-    const double fc = (p.x() - grid.x0()) / s, fr = (p.y() - grid.y0()) / s;
-    if (!(fc >= 0.0 && fr >= 0.0 && fc <= grid.cols - 1 && fr <= grid.rows - 1)) continue;
-    const int c0 = static_cast<int>(fc), r0 = static_cast<int>(fr);
-    for (int dr = 0; dr <= 1; ++dr) {
-      for (int dc = 0; dc <= 1; ++dc) {
-        if (grid.contains(r0 + dr, c0 + dc)) z[static_cast<size_t>(grid.index(r0 + dr, c0 + dc))].push_back(p.z());
-      }
-    }
+    if (p.allFinite()) grid.forCellVertices(p.x(), p.y(), [&](int v) { z[static_cast<size_t>(v)].push_back(p.z()); });
   }
   for (int v = 0; v < n; ++v) {
     std::vector<double>& zv = z[static_cast<size_t>(v)];

@@ -53,6 +53,7 @@ bool IncrementalEstimatorOptions::isValid(std::string* why) const {
   if (!skyline.isValid(&w)) return bad(w);
   if (!temporal_visibility.isValid(&w)) return bad(w);
   if (!far_seeds.isValid(&w)) return bad(w);
+  if (!rising_seeds.isValid(&w)) return bad(w);
   if (reinit_after_failures < 1) return bad("reinit_after_failures must be >= 1");
   if (prealign_level < 0 || prealign_iterations < 0 || prealign_refine_iterations < 0 || prealign_screen_iterations < 0) {
     return bad("prealign_level, prealign_iterations, prealign_refine_iterations and prealign_screen_iterations must be >= 0");
@@ -526,16 +527,35 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const auto t_obst = std::chrono::steady_clock::now();
   ObstacleMask obstacles =
       stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
-  if (options_.far_seeds.enabled && obstacles.far_pixels >= options_.far_seeds.min_far_pixels) {
-    // Ground seen past the surface (a crest's far side): its unknown vertices start at its points,
-    // vertices its rays pass under start at the ray, and the test runs again on that surface.
-    const std::vector<Eigen::Vector3d> far = obstacles.farPoints(rig_, state.camera_T_ground.inverse());
-    const FarGroundStarts starts = FarGroundSeeds(options_.far_seeds)
-                                       .starts(window, heights, info, state.camera_T_ground.inverse().translation(), far);
-    res.far_seeded_vertices = starts.seeded_vertices;
-    res.far_carved_vertices = starts.carved_vertices;
-    if (res.far_seeded_vertices > 0) {
-      view.initialHeights(window, state.camera_T_ground, &heights, &info, &starts.heights);
+  {
+    // Ground the surface does not hold: seen past it (a crest's far side: its unknown vertices start
+    // at its points, vertices its rays pass under at the ray), or rising out of it (an embankment
+    // the upright test took: its vertices start at its points). The test then runs again on that
+    // surface.
+    Eigen::VectorXd starts;
+    bool converge = false;  // the band between far seeds and the known ground: converged extension
+    if (options_.far_seeds.enabled && obstacles.far_pixels >= options_.far_seeds.min_far_pixels) {
+      const std::vector<Eigen::Vector3d> far = obstacles.farPoints(rig_, state.camera_T_ground.inverse());
+      const FarGroundStarts fs = FarGroundSeeds(options_.far_seeds)
+                                     .starts(window, heights, info, state.camera_T_ground.inverse().translation(), far);
+      res.far_seeded_vertices = fs.seeded_vertices;
+      res.far_carved_vertices = fs.carved_vertices;
+      starts = fs.heights;
+      converge = fs.seeded_vertices > 0;
+    }
+    if (options_.rising_seeds.enabled && obstacles.pixels > 0) {
+      const Eigen::VectorXd rs = RisingGroundSeeds(options_.rising_seeds)
+                                     .seeds(window, heights, info, state.camera_T_ground.inverse().translation(),
+                                            obstacles.uprightPoints(rig_, state.camera_T_ground.inverse()));
+      if (starts.size() == 0) starts = Eigen::VectorXd::Constant(rs.size(), std::numeric_limits<double>::quiet_NaN());
+      for (int v = 0; v < window.vertexCount(); ++v) {
+        if (!std::isfinite(rs[v])) continue;
+        ++res.rising_seeded_vertices;
+        if (!std::isfinite(starts[v])) starts[v] = rs[v];  // the far side's starts first
+      }
+    }
+    if (res.far_seeded_vertices > 0 || res.rising_seeded_vertices > 0) {
+      view.initialHeights(window, state.camera_T_ground, &heights, &info, &starts, converge);
       state.heights = heights;
       prior.mean = heights;
       prior.information = info * options_.prior_weight;

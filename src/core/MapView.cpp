@@ -38,7 +38,8 @@ GroundGrid MapView::window(const Eigen::Isometry3d& camera_T_ground) const {
 }
 
 void MapView::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camera_T_ground, Eigen::VectorXd* heights,
-                             Eigen::VectorXd* information, const Eigen::VectorXd* seeds) const {
+                             Eigen::VectorXd* information, const Eigen::VectorXd* seeds,
+                             bool converged_with_seeds) const {
   map_.sample(w, heights, information);
   // Weakly known heights (seen by a few pixels at long range) are not trusted as a start: a vertex
   // that starts far too low hides behind its neighbours and never gets the pixels to correct it.
@@ -93,7 +94,7 @@ void MapView::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camer
     }
   }
   double* h = heights->data();
-  if (n_seeded > 0) {
+  if (n_seeded > 0 && converged_with_seeds) {
     // With seeds, the converged extension: the band between them and the known ground, 60 sweeps
     // leave ~40 % short of it (high enough to hide the far side it leads to). Its fixed point,
     // n_i h_i - sum of the unknown neighbours = sum of the known ones, solved by sparse Cholesky;

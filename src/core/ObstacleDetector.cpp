@@ -65,6 +65,11 @@ std::vector<Eigen::Vector3d> ObstacleMask::farPoints(const StereoRig& rig, const
   return pointsOf(far_disparity, level, rig, ground_T_camera);
 }
 
+std::vector<Eigen::Vector3d> ObstacleMask::uprightPoints(const StereoRig& rig,
+                                                         const Eigen::Isometry3d& ground_T_camera) const {
+  return pointsOf(upright_disparity, level, rig, ground_T_camera);
+}
+
 ObstacleEvidence ObstacleDetector::evidence(const GroundGrid& grid, const Eigen::VectorXd& heights,
                                             const Eigen::VectorXi& ground_pixels, const Eigen::VectorXi& excluded_pixels,
                                             const std::vector<Eigen::Vector3d>& points, double hidden_ratio,
@@ -167,6 +172,7 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
   for (int k = 0; k < levels; ++k) out.excluded.push_back(cv::Mat::zeros(left.height(k), left.width(k), CV_8U));
   out.disparity = cv::Mat::zeros(h, w, CV_32F);
   out.far_disparity = cv::Mat::zeros(h, w, CV_32F);
+  out.upright_disparity = cv::Mat::zeros(h, w, CV_32F);
   if (!o.enabled) return out;
   if (ground_rho.size() != l.size() || ground_rho.type() != CV_32F) {
     throw std::invalid_argument("ObstacleDetector: ground inverse depth must be CV_32F of the test level's size");
@@ -371,11 +377,13 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     const float* rho = ground_rho.ptr<float>(v);
     uint8_t* m = mask.ptr<uint8_t>(v);
     float* od = out.disparity.ptr<float>(v);
+    float* ud = out.upright_disparity.ptr<float>(v);
     for (int u = 0; u < w; ++u) {
       if (!(rho[u] > 0.0f) || cg[u] > 1e29f || b[u] > 1e29f) continue;
       if (cg[u] > o.min_ground_cost_grey && b[u] < o.cost_ratio * cg[u]) {
         m[u] = 255;
         od[u] = bd[u] * scale;
+        ud[u] = od[u];
       }
     }
   }
@@ -447,6 +455,21 @@ ObstacleMask ObstacleDetector::detect(const ImagePyramid& left, const ImagePyram
     }
     return n > 0 ? sum / static_cast<float>(n) : 1e30f;
   };
+  // The flagged pixels' own disparities to a fraction of a pixel (a parabola through the window
+  // costs at the best whole disparity and its neighbours): whole pixels at the test level put the
+  // points of one disparity on one line across the view, up to a metre apart in depth at 10 m.
+  for (int v = 0; v < h; ++v) {
+    float* ud = out.upright_disparity.ptr<float>(v);
+    for (int u = 0; u < w; ++u) {
+      if (!(ud[u] > 0.0f)) continue;
+      const int d = static_cast<int>(std::lround(ud[u] / scale));
+      const float c0 = uprightCost(u, v, d), cm = uprightCost(u, v, d - 1), cp = uprightCost(u, v, d + 1);
+      const float curvature = cm - 2.0f * c0 + cp;
+      if (d >= 1 && cm < 1e29f && cp < 1e29f && curvature > 0.0f) {
+        ud[u] = (static_cast<float>(d) + std::clamp(0.5f * (cm - cp) / curvature, -0.5f, 0.5f)) * scale;
+      }
+    }
+  }
   for (int u = 0; u < w; ++u) {
     float d_obst = 0.0f;
     int run = 0;  // flagged pixels in a row with consistent disparity just above

@@ -113,6 +113,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
     "pixels a surface this many times farther than the ground explains better see past the mesh: excluded, no obstacle (0: off)", true);
   b("far_ground_seeds", &e.far_seeds.enabled,
     "unknown vertices under ground seen past the surface (a crest's far side) start at its rough points", true);
+  b("rising_ground_seeds", &e.rising_seeds.enabled,
+    "vertices under ground rising out of the surface (an embankment the upright test flagged) start at its points", true);
   d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
   b("hidden_body_along_ray", &ob.hidden_body_along_ray,
     "... only behind the obstacle along the camera's rays (fewer marks on free ground, fewer obstacle cells found)", true);

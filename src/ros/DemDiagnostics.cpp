@@ -106,6 +106,7 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   last_hidden_pixels_ = r.hidden_pixels;
   last_far_pixels_ = r.far_pixels;
   last_far_seeded_vertices_ = r.far_seeded_vertices;
+  last_rising_seeded_vertices_ = r.rising_seeded_vertices;
   if (r.prealign_rejected) ++counts_.prealign_rejected;
   if (r.prealign_discarded > 0) ++counts_.prealign_discarded;
   if (r.carried_moving_pixels > 0) ++counts_.carried_moving;
@@ -209,6 +210,7 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("ground the previous camera did not see, last [px at the finest temporal level]", last_hidden_pixels_);
   stat.add("ground seen past the surface, last (excluded) [px at the obstacle test level]", last_far_pixels_);
   stat.add("vertices started from ground seen past the surface, last", last_far_seeded_vertices_);
+  stat.add("vertices started on ground rising out of the surface, last", last_rising_seeded_vertices_);
   stat.add("last status", status_);
   stat.add("processing last [ms]", last_ms_);
   stat.add("processing mean [ms]", counts_.processed > 0 ? sum_ms_ / counts_.processed : 0.0);

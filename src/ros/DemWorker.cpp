@@ -320,6 +320,7 @@ void DemWorker::process(StereoFrame& f) {
   record.hidden_pixels = fr.hidden_pixels;
   record.far_pixels = fr.far_pixels;
   record.far_seeded_vertices = fr.far_seeded_vertices;
+  record.rising_seeded_vertices = fr.rising_seeded_vertices;
   record.wait_ms = (start - f.received).toSec() * 1e3;
   if (last_processed_stamp_s_ >= 0.0) record.stamp_gap_s = stamp_s - last_processed_stamp_s_;
   last_processed_stamp_s_ = stamp_s;

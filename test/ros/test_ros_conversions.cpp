@@ -493,6 +493,7 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   r.hidden_pixels = 345;
   r.far_pixels = 67;
   r.far_seeded_vertices = 8;
+  r.rising_seeded_vertices = 13;
   d.processed(r);
   const DemDiagnostics::Counts c = d.counts();
   EXPECT_EQ(c.processed, 3);
@@ -512,6 +513,7 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   EXPECT_EQ(kv["ground the previous camera did not see, last [px at the finest temporal level]"], "345");
   EXPECT_EQ(kv["ground seen past the surface, last (excluded) [px at the obstacle test level]"], "67");
   EXPECT_EQ(kv["vertices started from ground seen past the surface, last"], "8");
+  EXPECT_EQ(kv["vertices started on ground rising out of the surface, last"], "13");
   r.carried_moving_pixels = 0;
   r.prealign_shift_m = std::numeric_limits<double>::quiet_NaN();
   r.prealign_rejected = false;

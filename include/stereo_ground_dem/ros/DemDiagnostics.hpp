@@ -47,6 +47,7 @@ class DemDiagnostics {
     int hidden_pixels = 0;          ///< ground the previous camera did not see (TemporalVisibility; temporal level)
     int far_pixels = 0;             ///< ground seen past the surface (far_depth_ratio; obstacle test level)
     int far_seeded_vertices = 0;    ///< vertices started from its points or rays (FarGroundSeeds)
+    int rising_seeded_vertices = 0; ///< vertices started on ground rising out of the surface (RisingGroundSeeds)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -115,6 +116,7 @@ class DemDiagnostics {
   int last_hidden_pixels_ = 0;
   int last_far_pixels_ = 0;
   int last_far_seeded_vertices_ = 0;
+  int last_rising_seeded_vertices_ = 0;
   std::string status_;
   std::string last_problem_;
   bool last_problem_error_ = false;
