@@ -529,9 +529,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
       stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
   {
     // Ground the surface does not hold: seen past it (a crest's far side: its unknown vertices start
-    // at its points, vertices its rays pass under at the ray), or rising out of it (an embankment
-    // the upright test took: its vertices start at its points). The test then runs again on that
-    // surface.
+    // at its points, vertices its rays pass under at the ray; FarGroundSeeds), or rising out of it
+    // (a hill ahead that the upright test took: its unknown vertices start on its points' planes;
+    // RisingGroundSeeds). The test then runs again on that surface.
     Eigen::VectorXd starts;
     bool converge = false;  // the band between far seeds and the known ground: converged extension
     if (options_.far_seeds.enabled && obstacles.far_pixels >= options_.far_seeds.min_far_pixels) {
