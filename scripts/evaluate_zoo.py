@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Run dem_offline on the development zoo and both real KITTI clips and print one table.
 
-Every rendered scene of docs/zoo.md (rendered into --scenes on first use with sgd_render) and the
+Every rendered scene of docs/zoo.md (rendered into --scenes on first use with sgd_render, and again
+when another build of the renderer made the cached one: render_stamp.txt) and the
 two clips in ../shared/data: end-point drift, end rotation error, height errors of the vertices
 seen within 20 m (median / 95th, synthetic truth) or against the LiDAR reference (raw clip, all
 scored vertices, --pose lidar), coverage, failed frames and the median time per frame.
@@ -10,7 +11,9 @@ Usage: scripts/evaluate_zoo.py [--only a,b] [--config FILE] [--frames N] [--seed
                                [--out DIR] [--json FILE] [--bin DIR]
 """
 import argparse
+import hashlib
 import json
+import shutil
 import os
 import subprocess
 import sys
@@ -26,6 +29,20 @@ SCENES = ["flat", "bump", "offroad", "crest", "sag", "banked_curve", "bounce", "
 PYTHON = "/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable
 CLIPS = {"kitti_raw_0013": os.path.join(SHARED, "data", "kitti_raw_0926_d0013_f000-079"),
          "kitti_odom_06": os.path.join(SHARED, "data", "kitti_odom_seq06_f000-050")}
+
+
+def renderer_stamp(bin_dir, frames, seed):
+    """What made a rendered scene: the renderer's binary and its library (hashed), frames and seed.
+
+    A scene cached in --scenes by another build of the renderer is rendered again: an older render
+    kept in /tmp would otherwise be scored as if it were today's scene."""
+    h = hashlib.sha1()
+    lib = os.path.join(os.path.dirname(bin_dir), "libstereo_ground_dem_sim.so")
+    for path in (os.path.join(bin_dir, "sgd_render"), lib):
+        if os.path.exists(path):
+            with open(path, "rb") as f:
+                h.update(f.read())
+    return f"{h.hexdigest()} frames {frames} seed {seed}\n"
 
 
 def run(cmd, **kw):
@@ -62,16 +79,24 @@ def main():
     only = [s for s in a.only.split(",") if s]
     cases = [(n, os.path.join(a.scenes, n)) for n in SCENES] + list(CLIPS.items())
     rows = []
+    stamp = renderer_stamp(a.bin, a.frames, a.seed)
     print(f"{'case':16s} {'failed':>6s} {'ms':>6s} {'drift %':>8s} {'rot deg':>8s} {'h med cm':>9s} {'h p95 cm':>9s} {'cov %':>6s}")
     for name, seq in cases:
         if only and name not in only:
             continue
-        if name in SCENES and not os.path.exists(os.path.join(seq, "times.txt")):
+        stamp_path = os.path.join(seq, "render_stamp.txt")
+        stale = name in SCENES and (not os.path.exists(os.path.join(seq, "times.txt")) or not os.path.exists(stamp_path)
+                                    or open(stamp_path).read() != stamp)
+        if stale:
+            if os.path.exists(os.path.join(seq, "times.txt")):
+                shutil.rmtree(seq)  # a render of another build, frame count or seed (leaves no stray frames)
             r = run([os.path.join(a.bin, "sgd_render"), "--scene", name, "--frames", str(a.frames), "--seed", str(a.seed),
                      "--out", seq, "--quiet"])
             if r.returncode != 0:
                 print(f"{name}: sgd_render failed: {r.stderr.strip()}")
                 continue
+            with open(stamp_path, "w") as f:
+                f.write(stamp)
         out = os.path.join(a.out, name)
         os.makedirs(out, exist_ok=True)
         r = run([os.path.join(a.bin, "dem_offline"), "--sequence", seq, "--out", out, "--config", a.config, "--quiet"])
