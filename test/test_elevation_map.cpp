@@ -203,3 +203,32 @@ TEST(ElevationMapObstacles, AMarkNeedsTwoFramesAndLongStandingMarksTwoGroundFram
   EXPECT_FALSE(bad.isValid(&why));
   EXPECT_NE(why.find("max_score"), std::string::npos) << why;
 }
+
+TEST(ElevationMapLayers, AHeightFusedWithoutInformationIsPublishedAsUnknown) {
+  // The frame's last linearization did not see the vertex and the map knew nothing there: the
+  // height is kept for sample() (the estimator starts it as unknown: information 0), but no layer
+  // publishes it, so that every published height has a variance.
+  ElevationMap map;
+  const GroundGrid w = GroundGrid::covering(0.0, 3.0, 0.0, 3.0, 0.5);
+  const int n = w.vertexCount();
+  const int a = w.index(2, 3), b = w.index(4, 1);
+  std::vector<uint8_t> update(static_cast<size_t>(n), 1);
+  Eigen::VectorXd data_info = Eigen::VectorXd::Constant(n, 400.0);
+  data_info[a] = 0.0;
+  map.fuse(w, Eigen::VectorXd::Constant(n, 0.3), Eigen::VectorXd::Zero(n), data_info, update, 4);
+  Eigen::VectorXd h, info;
+  map.sample(w, &h, &info);
+  EXPECT_FLOAT_EQ(h[a], 0.3f);
+  EXPECT_EQ(info[a], 0.0);
+  for (const ElevationMap::Layer l : {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance,
+                                      ElevationMap::Layer::kObservations, ElevationMap::Layer::kLastUpdate,
+                                      ElevationMap::Layer::kObstacle}) {
+    const cv::Mat m = map.layer(l, w);
+    EXPECT_TRUE(std::isnan(m.at<float>(w.rowOf(a), w.colOf(a)))) << static_cast<int>(l);
+    EXPECT_TRUE(std::isfinite(m.at<float>(w.rowOf(b), w.colOf(b)))) << static_cast<int>(l);
+  }
+  EXPECT_FLOAT_EQ(map.layer(ElevationMap::Layer::kVariance, w).at<float>(w.rowOf(b), w.colOf(b)), 1.0f / 400.0f);
+  // Measured later, it is published again.
+  map.fuse(w, Eigen::VectorXd::Constant(n, 0.25), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 100.0), update, 5);
+  EXPECT_FLOAT_EQ(map.layer(ElevationMap::Layer::kElevation, w).at<float>(w.rowOf(a), w.colOf(a)), 0.25f);
+}

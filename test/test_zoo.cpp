@@ -157,18 +157,18 @@ INSTANTIATE_TEST_SUITE_P(
     Zoo, Scene,
     ::testing::Values(Limits{"flat", 40, 0.05, 0.035, 0.18, 0.9, 0.98},            // 0.03 0.020 0.11 0.56 1.00
                       Limits{"bump", 40, 0.13, 0.09, 1.0, 3.5, 0.97},               // 0.07 0.053 0.67 2.28 0.997
-                      Limits{"offroad", 40, 0.13, 0.09, 0.7, 9.0, 0.88},            // 0.06 0.034 0.35 5.93 0.938 (0.07 0.047 0.36 5.64 before far_depth_ratio; coverage 0.848 before it counted only ground in sight)
+                      Limits{"offroad", 40, 0.13, 0.09, 0.7, 9.0, 0.88},            // 0.06 0.034 0.34 4.77 0.922 (0.35 5.93 0.938 while heights without information were published; 0.07 0.047 0.36 5.64 before far_depth_ratio; coverage 0.848 before it counted only ground in sight)
                       Limits{"crest", 40, 0.09, 0.24, 1.9, 9.5, 0.97},              // 0.05 0.127 1.00 5.14 0.997 (0.10 0.182 2.82 9.04 without skyline_mask)
                       Limits{"sag", 40, 0.04, 0.055, 0.65, 2.6, 0.97},              // 0.02 0.035 0.44 1.70 0.997
                       Limits{"banked_curve", 40, 0.05, 0.09, 0.5, 2.0, 0.98},       // 0.03 0.055 0.35 1.41 1.00
                       Limits{"bounce", 40, 0.05, 0.03, 0.45, 2.2, 0.97},            // 0.01 0.004 0.24 1.13 0.998 (0.39 0.068 0.75 1.93 before search_pitch_rad; 1.81 0.460 2.37 6.39 without prealign_refine_iterations)
                       Limits{"tight_curve", 40, 0.07, 0.16, 1.3, 3.8, 0.96},        // 0.05 0.097 0.83 2.41 0.983
                       Limits{"ramp", 40, 0.15, 0.30, 0.7, 90.0, 0.90},              // 0.10 0.213 0.43 59.5 0.937
-                      Limits{"rolling", 40, 0.3, 0.5, 1.0, 100.0, 0.88},            // 0.15 0.261 0.50 70.2 0.901 (0.18 0.451 0.46 91.2 0.868 before the far rays' ceilings; 0.56 1.78 0.47 92.3 0.855 before far_ground_seeds; 1.08 3.66 0.72 89.1 0.934 before far_depth_ratio and temporal_visibility: ground past the crest is no longer fused; 1.64 3.48 0.73 88.0 0.917 before carry_moving_texture; 3.34 3.15 0.73 87.1 before max_acceleration_mps2; 2.62 3.05 0.72 87.1 before hypothesis_win_ratio 0.9; 5.41 3.10 0.64 113 before the obstacle layer's two-frame rule, 7.82 4.90 2.80 64.3 without skyline_mask)
+                      Limits{"rolling", 40, 0.3, 0.5, 1.0, 100.0, 0.88},            // 0.15 0.261 0.49 69.9 0.888 (0.50 70.2 0.901 while heights without information were published; 0.18 0.451 0.46 91.2 0.868 before the far rays' ceilings; 0.56 1.78 0.47 92.3 0.855 before far_ground_seeds; 1.08 3.66 0.72 89.1 0.934 before far_depth_ratio and temporal_visibility: ground past the crest is no longer fused; 1.64 3.48 0.73 88.0 0.917 before carry_moving_texture; 3.34 3.15 0.73 87.1 before max_acceleration_mps2; 2.62 3.05 0.72 87.1 before hypothesis_win_ratio 0.9; 5.41 3.10 0.64 113 before the obstacle layer's two-frame rule, 7.82 4.90 2.80 64.3 without skyline_mask)
                       // + obstacle layer: free ground flagged %, ghosts %, static recall % (measured 3.72 8.7 -, 8.54 10.5 99.3
                       // with hypothesis_win_ratio 0.9; 3.97 9.4 -, 8.57 10.5 99.3 with the obstacle's foot and two frames' evidence; 5.72 23.0 -, 15.3 11.5 99.3 before; the targets of
                       // issue 10 are 2 % and no ghosts: docs/results.md, "The obstacle layer")
-                      Limits{"shadows", 40, 0.8, 0.5, 1.0, 15.0, 0.97, 5.0, 18.0, -2.0},   // 0.36 0.250 0.38 7.8, flagged 2.6 %, ghosts 17.4 % (0.40 0.292 0.42 8.5, 2.7 %, 16.7 % before temporal_visibility; 0.56 0.498 0.51 8.4, 2.3 %, 15.2 % before obstacle_continue_at_left_border; 0.73 0.676 1.00 14.5 before carry_moving_texture; 1.28 1.010 0.98 14.2 before max_acceleration_mps2; 1.27 0.996 0.93 14.3 before hypothesis_win_ratio)
+                      Limits{"shadows", 40, 0.8, 0.5, 1.0, 14.0, 0.97, 5.0, 18.0, -2.0},   // 0.36 0.250 0.37 7.1 0.983, flagged 2.6 %, ghosts 17.4 % (0.38 7.8 0.995 while heights without information were published; 0.40 0.292 0.42 8.5, 2.7 %, 16.7 % before temporal_visibility; 0.56 0.498 0.51 8.4, 2.3 %, 15.2 % before obstacle_continue_at_left_border; 0.73 0.676 1.00 14.5 before carry_moving_texture; 1.28 1.010 0.98 14.2 before max_acceleration_mps2; 1.27 0.996 0.93 14.3 before hypothesis_win_ratio)
                       Limits{"traffic", 40, 0.10, 0.18, 0.36, 2.5, 0.88, 16.0, 20.0, 95.0}),  // 0.06 0.106 0.28 2.02, flagged 9.2 %, ghosts 10.7 % (0.06 0.119 0.30 2.07, 9.2 %, 10.4 % before obstacle_continue_at_left_border; 0.063 0.113 0.26 1.76 before carry_moving_texture; 0.055 0.102 0.26 1.72 before hypothesis_win_ratio)
     [](const ::testing::TestParamInfo<Limits>& i) { return std::string(i.param.name); });
 
@@ -188,7 +188,7 @@ TEST_P(SceneSeed2, MappedWithinItsMeasuredFigures) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Zoo, SceneSeed2,
-                         ::testing::Values(Limits{"rolling", 40, 0.3, 0.2, 1.7, 56.0, 0.85, 9.0, 1.0, -1.0}),  // 0.15 0.099 0.84 28.0 0.882, flagged 5.2 %
+                         ::testing::Values(Limits{"rolling", 40, 0.3, 0.2, 1.7, 45.0, 0.85, 9.0, 1.0, -1.0}),  // 0.15 0.099 0.78 22.7 0.853, flagged 5.2 % (0.84 28.0 0.882 while heights without information were published)
                          [](const ::testing::TestParamInfo<Limits>& i) { return std::string(i.param.name); });
 
 class RealClip : public Zoo {};

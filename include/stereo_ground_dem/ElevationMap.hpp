@@ -72,7 +72,9 @@ class ElevationMap {
   GroundGrid bounds() const;
   /// The bounding grid of the vertices that hold data (tighter than bounds()).
   GroundGrid knownBounds() const;
-  /// A dense layer over `window`: CV_32F rows x cols, NaN where unknown.
+  /// A dense layer over `window`: CV_32F rows x cols, NaN where unknown. A vertex is known where it
+  /// holds a height with information > 0 (sample() also returns heights fused without information,
+  /// which the estimator treats as unknown).
   cv::Mat layer(Layer which, const GroundGrid& window) const;
 
   /// Loads archived tiles back (e.g. to export the whole drive); returns how many were read.

@@ -282,19 +282,23 @@ cv::Mat ElevationMap::layer(Layer which, const GroundGrid& w) const {
       if (!t) continue;
       const size_t si = static_cast<size_t>(i);
       const bool obstacle = t->obstacle_score[si] >= options_.obstacle_mark_score;
+      // A height fused without information (the frame's last linearization did not see the
+      // vertex, and the map knew nothing there) is no measurement: the estimator starts such a
+      // vertex as unknown, and the layers publish it as unknown (a height always has a variance).
+      const bool known = std::isfinite(t->height[si]) && t->information[si] > 0.0f;
       if (which == Layer::kObstacle) {
         if (obstacle) row[c] = 1.0f;
-        else if (std::isfinite(t->height[si])) row[c] = 0.0f;
+        else if (known) row[c] = 0.0f;
         continue;
       }
       if (which == Layer::kObstacleHeight) {
         if (obstacle) row[c] = t->obstacle_height[si];
         continue;
       }
-      if (!std::isfinite(t->height[si])) continue;
+      if (!known) continue;
       switch (which) {
         case Layer::kElevation: row[c] = t->height[si]; break;
-        case Layer::kVariance: row[c] = t->information[si] > 0.0f ? 1.0f / t->information[si] : kNaN; break;
+        case Layer::kVariance: row[c] = 1.0f / t->information[si]; break;
         case Layer::kObservations: row[c] = t->observations[si]; break;
         case Layer::kLastUpdate: row[c] = static_cast<float>(t->last_update[si]); break;
         default: break;
