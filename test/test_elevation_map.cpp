@@ -65,6 +65,10 @@ using test::sameLayer;
 const ElevationMap::Layer kLayers[] = {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance,
                                        ElevationMap::Layer::kObservations, ElevationMap::Layer::kLastUpdate,
                                        ElevationMap::Layer::kObstacle, ElevationMap::Layer::kObstacleHeight};
+/// The layers that are NaN wherever the map publishes no height (obstacle "ground seen" included).
+const ElevationMap::Layer kPerHeightLayers[] = {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance,
+                                                ElevationMap::Layer::kObservations, ElevationMap::Layer::kLastUpdate,
+                                                ElevationMap::Layer::kObstacle};
 
 }  // namespace
 
@@ -220,9 +224,7 @@ TEST(ElevationMapLayers, AHeightFusedWithoutInformationIsPublishedAsUnknown) {
   map.sample(w, &h, &info);
   EXPECT_FLOAT_EQ(h[a], 0.3f);
   EXPECT_EQ(info[a], 0.0);
-  for (const ElevationMap::Layer l : {ElevationMap::Layer::kElevation, ElevationMap::Layer::kVariance,
-                                      ElevationMap::Layer::kObservations, ElevationMap::Layer::kLastUpdate,
-                                      ElevationMap::Layer::kObstacle}) {
+  for (const ElevationMap::Layer l : kPerHeightLayers) {
     const cv::Mat m = map.layer(l, w);
     EXPECT_TRUE(std::isnan(m.at<float>(w.rowOf(a), w.colOf(a)))) << static_cast<int>(l);
     EXPECT_TRUE(std::isfinite(m.at<float>(w.rowOf(b), w.colOf(b)))) << static_cast<int>(l);
@@ -231,4 +233,48 @@ TEST(ElevationMapLayers, AHeightFusedWithoutInformationIsPublishedAsUnknown) {
   // Measured later, it is published again.
   map.fuse(w, Eigen::VectorXd::Constant(n, 0.25), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 100.0), update, 5);
   EXPECT_FLOAT_EQ(map.layer(ElevationMap::Layer::kElevation, w).at<float>(w.rowOf(a), w.colOf(a)), 0.25f);
+}
+
+TEST_F(Archive, AHeightAFarRayRefutedIsPublishedAsUnknownUntilFusedAgain) {
+  // A far ray (a pixel that saw past the surface) passed under what the map holds at `a`, and the
+  // frame did not measure `a` again: sample() keeps the height (the estimator's start), the layers
+  // publish it as unknown, the mark survives the archive and the next fusion clears it.
+  ElevationMap map(options());
+  const GroundGrid w = GroundGrid::covering(0.0, 3.0, 0.0, 3.0, 0.5);
+  const int n = w.vertexCount();
+  const int a = w.index(2, 3), b = w.index(4, 1), c = w.index(5, 5);
+  std::vector<uint8_t> update(static_cast<size_t>(n), 1);
+  map.fuse(w, Eigen::VectorXd::Constant(n, 0.8), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 400.0), update, 3);
+  Eigen::VectorXd ceilings = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  ceilings[a] = 0.6;   // 0.2 m under the height: refuted
+  ceilings[b] = 0.75;  // 0.05 m under it, within the 0.1 m margin: kept
+  ceilings[c] = 0.2;   // far under it, but the frame measured c again: kept
+  std::fill(update.begin(), update.end(), 0);
+  update[static_cast<size_t>(c)] = 1;
+  EXPECT_EQ(map.markRefuted(w, ceilings, 0.1, update), 1);
+  EXPECT_EQ(map.markRefuted(w, ceilings, 0.1, update), 0) << "marked once";
+  Eigen::VectorXd h, info;
+  map.sample(w, &h, &info);
+  EXPECT_FLOAT_EQ(h[a], 0.8f);
+  EXPECT_FLOAT_EQ(info[a], 400.0f);
+  const auto published = [&](const ElevationMap& m, int v) {
+    return std::isfinite(m.layer(ElevationMap::Layer::kElevation, w).at<float>(w.rowOf(v), w.colOf(v)));
+  };
+  for (const ElevationMap::Layer l : kPerHeightLayers) {
+    const cv::Mat m = map.layer(l, w);
+    EXPECT_TRUE(std::isnan(m.at<float>(w.rowOf(a), w.colOf(a)))) << static_cast<int>(l);
+    EXPECT_TRUE(std::isfinite(m.at<float>(w.rowOf(b), w.colOf(b)))) << static_cast<int>(l);
+    EXPECT_TRUE(std::isfinite(m.at<float>(w.rowOf(c), w.colOf(c)))) << static_cast<int>(l);
+  }
+  // saved and loaded back (a map continued later): still refuted
+  EXPECT_EQ(map.saveTiles(dir_.string()), static_cast<int>(map.tileCount()));
+  ElevationMap back(options());
+  back.loadArchive(dir_.string());
+  EXPECT_FALSE(published(back, a));
+  EXPECT_TRUE(published(back, b));
+  // fused again: published again
+  std::fill(update.begin(), update.end(), 1);
+  map.fuse(w, Eigen::VectorXd::Constant(n, 0.5), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 100.0), update, 4);
+  EXPECT_TRUE(published(map, a));
+  EXPECT_THROW(map.markRefuted(w, Eigen::VectorXd::Zero(n - 1), 0.1, update), std::invalid_argument);
 }

@@ -59,6 +59,14 @@ class ElevationMap {
   void fuse(const GroundGrid& window, const Eigen::VectorXd& heights, const Eigen::VectorXd& prior_information,
             const Eigen::VectorXd& data_information, const std::vector<uint8_t>& update, int frame_index);
 
+  /// Marks the known heights that the rays of pixels which saw past the surface refute: a vertex
+  /// not updated by this frame (`update[v]` 0) whose height stands more than `margin_m` above its
+  /// `ceilings[v]` (FarGroundSeeds::ceilings: the ground lies below such a ray). A refuted vertex
+  /// keeps its height and information for sample() (the estimator's start, unchanged), but the
+  /// layers publish it as unknown until a frame fuses it again. Returns how many were newly marked.
+  int markRefuted(const GroundGrid& window, const Eigen::VectorXd& ceilings, double margin_m,
+                  const std::vector<uint8_t>& update);
+
   /// Obstacle evidence of one frame on `window` (vectors per window vertex): hits raise a
   /// vertex's obstacle score, ground observations lower it, so that moving objects leave no
   /// ghosts once the ground behind them is seen again.
@@ -74,7 +82,7 @@ class ElevationMap {
   GroundGrid knownBounds() const;
   /// A dense layer over `window`: CV_32F rows x cols, NaN where unknown. A vertex is known where it
   /// holds a height with information > 0 (sample() also returns heights fused without information,
-  /// which the estimator treats as unknown).
+  /// which the estimator treats as unknown) that no far ray refuted since (markRefuted()).
   cv::Mat layer(Layer which, const GroundGrid& window) const;
 
   /// Loads archived tiles back (e.g. to export the whole drive); returns how many were read.
@@ -99,6 +107,7 @@ class ElevationMap {
     std::vector<int32_t> last_update;
     std::vector<float> obstacle_score;   ///< log-odds-like; >= 1: obstacle
     std::vector<float> obstacle_height;  ///< [m] above the ground, NaN unknown
+    std::vector<uint8_t> refuted;        ///< 1: a far ray passed under the height (markRefuted)
   };
   using Key = std::int64_t;
   static Key key(int tile_row, int tile_col) {

@@ -49,6 +49,9 @@ struct FarGroundStarts {
   Eigen::VectorXd heights;
   int seeded_vertices = 0;  ///< finite entries of `heights` (seeds and ceilings together)
   int carved_vertices = 0;  ///< of which a ceiling (a far ray passing under the vertex's height)
+  /// ceilings() of the frame [m] (+infinity where no far ray passed): the map heights above them
+  /// that the frame does not measure again are refuted (ElevationMap::markRefuted).
+  Eigen::VectorXd ceilings;
 };
 
 class FarGroundSeeds {

@@ -203,6 +203,9 @@ struct FrameResult {
   int far_seeded_vertices = 0;           ///< vertices started from those pixels' points or rays (FarGroundSeeds)
   int rising_seeded_vertices = 0;        ///< vertices started on ground rising out of the surface (RisingGroundSeeds)
   int far_carved_vertices = 0;           ///< ... of them: at the ray, which passed under their height
+  /// Map heights a far ray passed under that this frame did not measure again: kept for the
+  /// estimator, published as unknown until fused again (ElevationMap::markRefuted).
+  int far_refuted_vertices = 0;
   int obstacle_vertices = 0;             ///< vertices hit by obstacle evidence this frame
   /// The rectification error modelled after this frame (zero when negligible or not modelled).
   VerticalMisalignment rectification;

@@ -14,6 +14,7 @@ namespace {
 int floorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr char kMagic[8] = {'S', 'G', 'D', 'T', 'I', 'L', 'E', '2'};
+constexpr std::int32_t kTileHasRefuted = 1;  ///< header flag: one byte per vertex of refuted marks at the end
 }  // namespace
 
 bool ElevationMapOptions::isValid(std::string* why) const {
@@ -53,6 +54,7 @@ ElevationMap::Tile* ElevationMap::tileFor(int lr, int lc, bool create, int* inde
   t.last_update.assign(n, -1);
   t.obstacle_score.assign(n, 0.0f);
   t.obstacle_height.assign(n, kNaN);
+  t.refuted.assign(n, 0);
   return &tiles_.emplace(k, std::move(t)).first->second;
 }
 
@@ -101,8 +103,31 @@ void ElevationMap::fuse(const GroundGrid& w, const Eigen::VectorXd& heights, con
       t->information[si] = static_cast<float>(info);
       if (t->observations[si] < 65535) t->observations[si]++;
       t->last_update[si] = frame_index;
+      t->refuted[si] = 0;
     }
   }
+}
+
+int ElevationMap::markRefuted(const GroundGrid& w, const Eigen::VectorXd& ceilings, double margin_m,
+                              const std::vector<uint8_t>& update) {
+  if (ceilings.size() != w.vertexCount() || update.size() != static_cast<size_t>(w.vertexCount())) {
+    throw std::invalid_argument("ElevationMap::markRefuted: ceilings or update do not match the window");
+  }
+  int marked = 0;
+  for (int r = 0; r < w.rows; ++r) {
+    for (int c = 0; c < w.cols; ++c) {
+      const int v = w.index(r, c);
+      if (update[static_cast<size_t>(v)] || !std::isfinite(ceilings[v])) continue;
+      int i = 0;
+      Tile* t = tileFor(w.row0 + r, w.col0 + c, false, &i);
+      if (!t) continue;
+      const size_t si = static_cast<size_t>(i);
+      if (t->refuted[si] || !(t->information[si] > 0.0f) || !(t->height[si] > ceilings[v] + margin_m)) continue;
+      t->refuted[si] = 1;
+      ++marked;
+    }
+  }
+  return marked;
 }
 
 void ElevationMap::updateObstacles(const GroundGrid& w, const std::vector<uint8_t>& hit,
@@ -134,7 +159,8 @@ void ElevationMap::writeTile(const std::string& directory, Key k, const Tile& t)
   const std::string path = directory + "/tile_" + std::to_string(tr) + "_" + std::to_string(tc) + ".bin";
   std::ofstream out(path, std::ios::binary);
   if (!out) throw std::runtime_error("ElevationMap: cannot write archive tile '" + path + "'");
-  const std::int32_t header[4] = {tr, tc, options_.tile_size, 0};
+  // header[3]: flags; bit 0 = the refuted marks follow the obstacle heights (older tiles: 0)
+  const std::int32_t header[4] = {tr, tc, options_.tile_size, kTileHasRefuted};
   const double res = options_.resolution_m;
   out.write(kMagic, sizeof(kMagic));
   out.write(reinterpret_cast<const char*>(header), sizeof(header));
@@ -146,6 +172,7 @@ void ElevationMap::writeTile(const std::string& directory, Key k, const Tile& t)
   out.write(reinterpret_cast<const char*>(t.last_update.data()), n * 4);
   out.write(reinterpret_cast<const char*>(t.obstacle_score.data()), n * 4);
   out.write(reinterpret_cast<const char*>(t.obstacle_height.data()), n * 4);
+  out.write(reinterpret_cast<const char*>(t.refuted.data()), n);
   out.close();
   if (!out) throw std::runtime_error("ElevationMap: cannot write archive tile '" + path + "' (disk full?)");
 }
@@ -187,12 +214,14 @@ int ElevationMap::loadArchive(const std::string& directory) {
     t.last_update.resize(n);
     t.obstacle_score.resize(n);
     t.obstacle_height.resize(n);
+    t.refuted.assign(n, 0);  // tiles written before the marks existed: none
     in.read(reinterpret_cast<char*>(t.height.data()), static_cast<std::streamsize>(n * 4));
     in.read(reinterpret_cast<char*>(t.information.data()), static_cast<std::streamsize>(n * 4));
     in.read(reinterpret_cast<char*>(t.observations.data()), static_cast<std::streamsize>(n * 2));
     in.read(reinterpret_cast<char*>(t.last_update.data()), static_cast<std::streamsize>(n * 4));
     in.read(reinterpret_cast<char*>(t.obstacle_score.data()), static_cast<std::streamsize>(n * 4));
     in.read(reinterpret_cast<char*>(t.obstacle_height.data()), static_cast<std::streamsize>(n * 4));
+    if (header[3] & kTileHasRefuted) in.read(reinterpret_cast<char*>(t.refuted.data()), static_cast<std::streamsize>(n));
     if (!in) {
       closedir(d);
       throw std::runtime_error("ElevationMap: archive tile '" + name + "' is truncated");
@@ -285,7 +314,8 @@ cv::Mat ElevationMap::layer(Layer which, const GroundGrid& w) const {
       // A height fused without information (the frame's last linearization did not see the
       // vertex, and the map knew nothing there) is no measurement: the estimator starts such a
       // vertex as unknown, and the layers publish it as unknown (a height always has a variance).
-      const bool known = std::isfinite(t->height[si]) && t->information[si] > 0.0f;
+      // A height a far ray refuted (markRefuted) is published as unknown until it is fused again.
+      const bool known = std::isfinite(t->height[si]) && t->information[si] > 0.0f && !t->refuted[si];
       if (which == Layer::kObstacle) {
         if (obstacle) row[c] = 1.0f;
         else if (known) row[c] = 0.0f;
@@ -315,7 +345,7 @@ void ElevationMap::clear() {
 
 size_t ElevationMap::memoryBytes() const {
   const size_t n = static_cast<size_t>(options_.tile_size) * static_cast<size_t>(options_.tile_size);
-  return tiles_.size() * (n * (4 + 4 + 2 + 4 + 4 + 4) + sizeof(Tile) + 32);
+  return tiles_.size() * (n * (4 + 4 + 2 + 4 + 4 + 4 + 1) + sizeof(Tile) + 32);
 }
 
 }  // namespace stereo_ground_dem

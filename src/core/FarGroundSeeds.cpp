@@ -74,7 +74,8 @@ FarGroundStarts FarGroundSeeds::starts(const GroundGrid& grid, const Eigen::Vect
                                        const std::vector<Eigen::Vector3d>& points) const {
   FarGroundStarts out;
   out.heights = seeds(grid, heights, information, points);
-  const Eigen::VectorXd ceiling = ceilings(grid, camera, points);
+  out.ceilings = ceilings(grid, camera, points);
+  const Eigen::VectorXd& ceiling = out.ceilings;
   for (int v = 0; v < grid.vertexCount(); ++v) {
     if (!std::isfinite(out.heights[v]) && heights[v] > ceiling[v] + options_.ceiling_margin_m) {
       out.heights[v] = ceiling[v];

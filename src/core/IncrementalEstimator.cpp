@@ -525,6 +525,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
 
   // ---- 2. occlusion reasoning at the aligned pose
   const auto t_obst = std::chrono::steady_clock::now();
+  Eigen::VectorXd far_ceilings;  // bounds on the ground from the rays that saw past the surface
   ObstacleMask obstacles =
       stereo_.detectObstacles(*pl, *pr, window, heights, state.camera_T_ground, state.photometric[0]);
   {
@@ -540,6 +541,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
                                      .starts(window, heights, info, state.camera_T_ground.inverse().translation(), far);
       res.far_seeded_vertices = fs.seeded_vertices;
       res.far_carved_vertices = fs.carved_vertices;
+      far_ceilings = fs.ceilings;
       starts = fs.heights;
       converge = fs.seeded_vertices > 0;
     }
@@ -617,6 +619,13 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const Eigen::VectorXd fused_prior_info =
       options_.use_map_prior ? prior.information : Eigen::VectorXd::Zero(window.vertexCount());
   map_.fuse(window, state.heights, fused_prior_info, last.vertex_information, update, res.frame_index);
+  if (far_ceilings.size() == window.vertexCount()) {
+    // What the map holds above a far ray and this frame did not measure again is refuted: published
+    // as unknown. The estimator keeps starting from it (forgetting it moved the tracking both ways,
+    // docs/results.md "Map heights the far rays refute").
+    res.far_refuted_vertices =
+        map_.markRefuted(window, far_ceilings, options_.far_seeds.ceiling_margin_m, update);
+  }
   const Eigen::Vector3d camera_position = state.camera_T_ground.inverse().translation();
   const ObstacleEvidence oe = ObstacleDetector::evidence(
       window, state.heights, last.vertex_pixels, last.vertex_excluded_pixels,
