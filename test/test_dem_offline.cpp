@@ -138,7 +138,7 @@ TEST_F(DemOffline, SequenceModeOnTheBundledSample) {
   std::ifstream frames(out + "/frames.csv");
   std::string header;
   std::getline(frames, header);
-  EXPECT_NE(header.find(",moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,prealign_shift_m,prealign_rejected,prealign_discarded,carried_moving_pixels,hidden_pixels,far_pixels,far_seeded_vertices,far_carved_vertices,rising_seeded_vertices,far_refuted_vertices,message"), std::string::npos)
+  EXPECT_NE(header.find(",moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,prealign_shift_m,prealign_rejected,prealign_discarded,carried_moving_pixels,hidden_pixels,far_pixels,far_seeded_vertices,far_carved_vertices,rising_seeded_vertices,far_refuted_vertices,repeat_from_prediction,message"), std::string::npos)
       << header;
   const std::vector<std::string> heights = column(out, 13);
   ASSERT_EQ(heights.size(), 4u);

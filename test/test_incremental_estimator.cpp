@@ -66,6 +66,35 @@ double positionError(const Sequence& s, const FrameResult& r, int k) {
   return (r.camera0_T_camera.translation() - truth(s, k).translation()).norm();
 }
 
+/// Two estimators side by side over frames 0..n-1 of `s` (every frame must initialize or track):
+/// each frame's results and the summed error of the steps of frames first..n-1 [m].
+struct SideBySide {
+  std::vector<FrameResult> a, b;
+  double step_error_a = 0.0, step_error_b = 0.0;
+};
+SideBySide runSideBySide(const Sequence& s, int n, int first, IncrementalEstimator& est_a, IncrementalEstimator& est_b) {
+  SideBySide out;
+  for (int k = 0; k < n; ++k) {
+    const sim::RenderedPair f = s.gen.render(k);
+    const double t = s.gen.frames()[static_cast<size_t>(k)].time_s;
+    out.a.push_back(est_a.processFrame(f.left.image, f.right.image, t));
+    out.b.push_back(est_b.processFrame(f.left.image, f.right.image, t));
+    for (const FrameResult* r : {&out.a.back(), &out.b.back()}) {
+      EXPECT_TRUE(r->status == FrameStatus::kInitialized || r->status == FrameStatus::kTracked) << k << " " << r->message;
+    }
+    if (k >= first && k > 0) {
+      const Eigen::Vector3d true_step = (truth(s, k - 1).inverse() * truth(s, k)).translation();
+      auto stepError = [&](const std::vector<FrameResult>& r) {
+        const Eigen::Isometry3d step = r[static_cast<size_t>(k) - 1].camera0_T_camera.inverse() * r.back().camera0_T_camera;
+        return (step.translation() - true_step).norm();
+      };
+      out.step_error_a += stepError(out.a);
+      out.step_error_b += stepError(out.b);
+    }
+  }
+  return out;
+}
+
 cv::Mat layer(const ElevationMap& m, const GroundGrid& g) { return m.layer(ElevationMap::Layer::kElevation, g); }
 
 using test::sameLayer;
@@ -445,8 +474,11 @@ TEST(IncrementalEstimator, PreAlignmentBeyondTheAccelerationBoundKeepsThePredict
   const sim::SyntheticScene scene(preset.scene);
   const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
   const Sequence seq{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)};
+  // repeat_from_prediction (true by default since) also starts the second pass from the prediction
+  // here (step error 0.4 cm without the bound), so both run without it as well.
   IncrementalEstimatorOptions bounded;
   bounded.carry_moving_texture = false;
+  bounded.repeat_from_prediction = false;
   IncrementalEstimatorOptions unbounded = bounded;
   unbounded.max_acceleration_mps2 = 0.0;
   IncrementalEstimator est(seq.rig, bounded), est_u(seq.rig, unbounded);
@@ -491,28 +523,20 @@ TEST(IncrementalEstimator, TextureMovingWithTheVehicleIsSkippedFromTheStart) {
   const sim::SyntheticScene scene(preset.scene);
   const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
   const Sequence seq{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)};
-  IncrementalEstimatorOptions off;
+  // repeat_from_prediction (true by default since) removes most of that pull too (the second pass
+  // starts from the prediction: 5.8 cm without carry_moving_texture, 4.8 cm with it), so both run
+  // without it: the carried texture is what is tested.
+  IncrementalEstimatorOptions on;
+  on.repeat_from_prediction = false;
+  IncrementalEstimatorOptions off = on;
   off.carry_moving_texture = false;
-  IncrementalEstimator est(seq.rig, IncrementalEstimatorOptions()), est_off(seq.rig, off);
-  FrameResult prev, prev_off;
-  double error = 0.0, error_off = 0.0;
+  IncrementalEstimator est(seq.rig, on), est_off(seq.rig, off);
+  const SideBySide run = runSideBySide(seq, n, first, est, est_off);
+  const double error = run.step_error_a, error_off = run.step_error_b;
   int carried_frames = 0, carried_off = 0;
   for (int k = 0; k < n; ++k) {
-    const sim::RenderedPair f = seq.gen.render(k);
-    const double t = seq.gen.frames()[static_cast<size_t>(k)].time_s;
-    const FrameResult r = est.processFrame(f.left.image, f.right.image, t);
-    const FrameResult ro = est_off.processFrame(f.left.image, f.right.image, t);
-    ASSERT_TRUE(r.status == FrameStatus::kInitialized || r.status == FrameStatus::kTracked) << k << " " << r.message;
-    ASSERT_TRUE(ro.status == FrameStatus::kInitialized || ro.status == FrameStatus::kTracked) << k << " " << ro.message;
-    carried_off += ro.carried_moving_pixels > 0;
-    if (k >= first) {
-      const Eigen::Vector3d true_step = (truth(seq, k - 1).inverse() * truth(seq, k)).translation();
-      error += ((prev.camera0_T_camera.inverse() * r.camera0_T_camera).translation() - true_step).norm();
-      error_off += ((prev_off.camera0_T_camera.inverse() * ro.camera0_T_camera).translation() - true_step).norm();
-      carried_frames += r.carried_moving_pixels > 0;
-    }
-    prev = r;
-    prev_off = ro;
+    carried_off += run.b[static_cast<size_t>(k)].carried_moving_pixels > 0;
+    if (k >= first) carried_frames += run.a[static_cast<size_t>(k)].carried_moving_pixels > 0;
   }
   std::printf("frames %d-%d: summed step error %.1f cm (without carry_moving_texture %.1f cm); texture carried in %d of %d frames\n",
               first, n - 1, 100 * error, 100 * error_off, carried_frames, n - first);
@@ -520,8 +544,63 @@ TEST(IncrementalEstimator, TextureMovingWithTheVehicleIsSkippedFromTheStart) {
   EXPECT_EQ(carried_frames, n - first);
   // (59.7 / 17.5 cm before obstacle_continue_at_left_border, which flags the part of the
   // overtaking car the obstacle test cannot see at the left border)
-  EXPECT_GT(error_off, 0.30) << "the failure as described (measured 38.6 cm)";
-  EXPECT_LT(error, 0.20);  // measured 13.5 cm
+  EXPECT_GT(error_off, 0.30) << "the failure as described (measured 58.4 cm; 38.6 cm when written)";
+  EXPECT_LT(error, 0.20);  // measured 10.0 cm (13.5 cm when written)
+}
+
+TEST(IncrementalEstimator, SecondPassStartsFromThePredictionWhenItExplainsTheImagesBetter) {
+  // The shadows scene with seed 3: a truck we overtake and a car ahead of it, both with shadows,
+  // pull every frame's pre-alignment and first joint pass 7-23 cm back from the constant-velocity
+  // prediction (toward standing still). The moving-texture test then takes their texture out and
+  // the finest temporal level runs once more, from where the first pass ended: in frames 37-38 it
+  // did not get back (steps 15 and 7 cm short, yaw 0.34 and 0.22 deg off: the drive ended 0.81 deg
+  // off). With repeat_from_prediction that pass starts from the prediction when, without the
+  // moving texture, the prediction's cost per sample is clearly lower (below hypothesis_win_ratio,
+  // 0.9, times) than the first pass's pose's.
+  sim::ScenePreset preset = sim::ScenePreset::forKind(sim::SceneKind::kShadows, 3);
+  const int n = 40, first = 33;
+  preset.sequence.frames = n;
+  preset.sequence.noise_seed = 3;  // as sgd_render --seed 3 (the zoo's third seed)
+  const sim::SyntheticScene scene(preset.scene);
+  const StereoRig rig = sim::StereoRenderer::kittiLikeRig(1.0);
+  const Sequence seq{scene, rig, sim::SequenceGenerator(scene, rig, preset.sequence)};
+  IncrementalEstimatorOptions on;
+  on.motion_information = false;  // as dem_offline runs
+  IncrementalEstimatorOptions off = on;
+  off.repeat_from_prediction = false;
+  // The rig as dem_offline reads it from the rendered calib.txt, as in the zoo. This scene is
+  // sensitive: with the renderer's own rig (cx and the baseline differ in their last bits) the
+  // failure is milder: 5.7 cm / 0.172 deg without the option.
+  Eigen::Matrix<double, 3, 4> p_left, p_right;
+  p_left << 707.0912, 0.0, 601.8873, 0.0, 0.0, 707.0912, 183.1104, 0.0, 0.0, 0.0, 1.0, 0.0;
+  p_right = p_left;
+  p_right(0, 3) = -379.8145;
+  const StereoRig read_rig = StereoRig::fromProjectionMatrices(p_left, p_right, rig.width, rig.height);
+  IncrementalEstimator est(read_rig, on), est_off(read_rig, off);
+  const SideBySide run = runSideBySide(seq, n, first, est, est_off);
+  const double error = run.step_error_a, error_off = run.step_error_b;
+  int from_prediction = 0, from_prediction_off = 0;
+  for (int k = 0; k < n; ++k) {
+    from_prediction += run.a[static_cast<size_t>(k)].repeat_from_prediction;
+    from_prediction_off += run.b[static_cast<size_t>(k)].repeat_from_prediction;
+  }
+  constexpr double kDeg = 180.0 / M_PI;
+  auto rotationErrorDeg = [&](const FrameResult& r) {
+    return Eigen::AngleAxisd((truth(seq, n - 1).inverse() * r.camera0_T_camera).rotation()).angle() * kDeg;
+  };
+  const double rot = rotationErrorDeg(run.a.back()), rot_off = rotationErrorDeg(run.b.back());
+  std::printf("frames %d-%d: summed step error %.1f cm (without repeat_from_prediction %.1f cm); end rotation error "
+              "%.3f deg (%.3f deg); second pass from the prediction in %d of %d frames\n",
+              first, n - 1, 100 * error, 100 * error_off, rot, rot_off, from_prediction, n - 1);
+  EXPECT_EQ(from_prediction_off, 0);
+  // measured 5 (dem_offline on the zoo's render: 6, frames 30, 31, 33, 35, 36 and 38; in the
+  // other frames with a second pass the prediction is not 10 % cheaper and the pass's pose is kept)
+  EXPECT_GE(from_prediction, 3);
+  EXPECT_LE(from_prediction, 12);
+  EXPECT_GT(error_off, 0.20) << "the failure as described (measured 31.1 cm)";
+  EXPECT_GT(rot_off, 0.5) << "the failure as described (measured 0.775 deg)";
+  EXPECT_LT(error, 0.068);  // measured 3.4 cm
+  EXPECT_LT(rot, 0.26);     // measured 0.131 deg
 }
 
 TEST(IncrementalEstimator, MotionInformationOfTrackedFrames) {

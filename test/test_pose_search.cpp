@@ -321,3 +321,94 @@ TEST(PoseSearch, AnotherStartEndingBeyondTheBoundIsNoCandidate) {
   EXPECT_FALSE(std::isfinite(bounded.cost));
   EXPECT_LT(distanceM(bounded.camera_T_ground, predicted), 1e-12);
 }
+
+// SurfaceAligner's alternative start (AlignmentProblem::alternative_start: the prediction offered
+// to repeat_from_prediction's second pass): evaluated with the state's own start and taken only
+// when its cost per sample is below alternative_win_ratio times that, with one more evaluation
+// and no other change. Frame 2 of the mapped drive, motion only, at pyramid level 3.
+TEST(SurfaceAligner, AnAlternativeStartIsTakenOnlyWhenClearlyCheaper) {
+  MappedDrive d;
+  Vector6d back = Vector6d::Zero();
+  back[2] = 0.4;  // camera z: 0.4 m short of the true step, as a pass pulled toward standing still
+  const Eigen::Isometry3d pulled = Se3::exp(back) * d.true_camera_T_ground;
+  const GroundGrid window = d.view->window(d.true_camera_T_ground);
+  Eigen::VectorXd heights, info;
+  d.view->initialHeights(window, d.true_camera_T_ground, &heights, &info);
+  const PrealignRequest q = d.request({}, 10.0);
+  AlignmentProblem prob;
+  prob.reference = &d.left;
+  prob.level = 3;
+  prob.rig = &d.rig;
+  prob.grid = &window;
+  prob.targets = {q.targets[0], q.targets[1]};
+  prob.estimate_heights = false;
+  SurfaceAlignerOptions ao = d.options.stereo.alignerOptions();
+  ao.estimate_motion = true;
+  ao.max_iterations = 0;  // the starts' costs only
+  const SurfaceAligner scorer(ao);
+  auto start = [&](const Eigen::Isometry3d& pose) {
+    SurfaceState s;
+    s.camera_T_ground = pose;
+    s.heights = heights;
+    s.photometric = {PhotometricParams(), PhotometricParams()};
+    return s;
+  };
+  auto perSample = [](const AlignmentReport& r) { return r.initial_cost / (r.valid_pixels + r.outside_pixels); };
+  SurfaceState s = start(d.true_camera_T_ground);
+  const AlignmentReport at_truth = scorer.align(prob, s);
+  s = start(pulled);
+  const AlignmentReport at_pulled = scorer.align(prob, s);
+  const double true_cost = at_truth.initial_cost, pulled_cost = at_pulled.initial_cost;
+  std::printf("costs per sample: true step %.1f, 0.4 m short %.1f (%.2fx)\n", perSample(at_truth), perSample(at_pulled),
+              perSample(at_pulled) / perSample(at_truth));
+  ASSERT_LT(perSample(at_truth), 0.9 * perSample(at_pulled)) << "the scene as described";
+
+  prob.alternative_start = &d.true_camera_T_ground;
+  prob.alternative_win_ratio = 0.9;
+  s = start(pulled);
+  AlignmentReport r = scorer.align(prob, s);
+  EXPECT_TRUE(r.started_from_alternative);
+  EXPECT_EQ(r.evaluations, 3);  // the alternative, the own start, the alternative again (evaluated last)
+  EXPECT_EQ(r.initial_cost, true_cost);
+  EXPECT_LT(distanceM(s.camera_T_ground, d.true_camera_T_ground), 1e-12);
+
+  // not cheaper by the margin: the state's own start stays
+  prob.alternative_win_ratio = 0.9 * perSample(at_truth) / perSample(at_pulled);
+  s = start(pulled);
+  r = scorer.align(prob, s);
+  EXPECT_FALSE(r.started_from_alternative);
+  EXPECT_EQ(r.evaluations, 2);
+  EXPECT_EQ(r.initial_cost, pulled_cost);
+  EXPECT_LT(distanceM(s.camera_T_ground, pulled), 1e-12);
+
+  // a worse alternative never replaces the start
+  prob.alternative_start = &pulled;
+  prob.alternative_win_ratio = 1.0;
+  s = start(d.true_camera_T_ground);
+  r = scorer.align(prob, s);
+  EXPECT_FALSE(r.started_from_alternative);
+  EXPECT_LT(distanceM(s.camera_T_ground, d.true_camera_T_ground), 1e-12);
+
+  // a pose that sees no ground (the mesh behind it: 60 m ahead, as a stamp jump's constant-velocity
+  // prediction) has no samples, whatever its total cost (0)
+  Vector6d ahead = Vector6d::Zero();
+  ahead[2] = -60.0;
+  const Eigen::Isometry3d far_ahead = Se3::exp(ahead) * d.true_camera_T_ground;
+  prob.alternative_start = &far_ahead;
+  s = start(pulled);
+  r = scorer.align(prob, s);
+  EXPECT_FALSE(r.started_from_alternative);
+  EXPECT_LT(distanceM(s.camera_T_ground, pulled), 1e-12);
+
+  // with iterations: from the taken alternative the alignment stays at the truth
+  ao.max_iterations = 8;
+  prob.alternative_start = &d.true_camera_T_ground;
+  prob.alternative_win_ratio = 0.9;
+  s = start(pulled);
+  r = SurfaceAligner(ao).align(prob, s);
+  EXPECT_TRUE(r.started_from_alternative);
+  std::printf("aligned from the alternative: %.1f mm, %.3f deg from the truth\n",
+              1e3 * distanceM(s.camera_T_ground, d.true_camera_T_ground), angleDeg(s.camera_T_ground, d.true_camera_T_ground));
+  EXPECT_LT(distanceM(s.camera_T_ground, d.true_camera_T_ground), 0.008);  // measured 3.9 mm
+  EXPECT_LT(angleDeg(s.camera_T_ground, d.true_camera_T_ground), 0.045);    // measured 0.021 deg
+}

@@ -65,6 +65,13 @@ struct IncrementalEstimatorOptions {
   /// it pulls the pre-alignment and the first joint pass toward standing still, and the test, run
   /// at the pulled pose, then misses it (docs/results.md, "Texture that moves with the vehicle").
   bool carry_moving_texture = true;
+  /// When the moving-texture test sends the finest temporal level through a second pass, that pass
+  /// starts from the prediction (the first of the pre-alignment's starts) instead of the first
+  /// pass's pose if the prediction's cost per sample is clearly lower (below hypothesis_win_ratio
+  /// times) with the flagged texture skipped: the first pass estimated the motion with that
+  /// texture in (a car ahead and its shadow pull it toward standing still; docs/results.md, "The
+  /// second pass from the prediction").
+  bool repeat_from_prediction = true;
   SkylineMaskOptions skyline;             ///< the ground's outline against a blank background: skipped by them too
   /// Ground the previous camera did not see (hidden by the surface itself: behind a ridge, a
   /// crest, a ditch's rim) is skipped by the temporal pairs: tested after the first pass of the
@@ -133,7 +140,9 @@ struct IncrementalEstimatorOptions {
   /// one (running over good frames); otherwise the next hypothesis is tried.
   double hypothesis_accept_ratio = 1.3;
   /// With a velocity, another start replaces the prediction only when its cost per sample after
-  /// pre-alignment is below this times the prediction's (1: any cheaper start wins).
+  /// pre-alignment is below this times the prediction's (1: any cheaper start wins). The same
+  /// margin lets the prediction replace the first pass's pose before repeat_from_prediction's
+  /// second pass.
   double hypothesis_win_ratio = 0.9;
   /// Without a velocity, this many of the best-scoring search poses are aligned.
   int search_candidates = 3;
@@ -192,6 +201,7 @@ struct FrameResult {
   int moving_pixels = 0;  ///< ground pixels whose texture moved, skipped by the temporal pairs (test level)
   int hidden_pixels = 0;  ///< ground pixels the previous camera did not see (TemporalVisibility; its level)
   int carried_moving_pixels = 0;  ///< ... of the last two frames, skipped from the start (carry_moving_texture)
+  bool repeat_from_prediction = false;  ///< the finest temporal level's second pass started from the prediction
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
   /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck does not
@@ -271,7 +281,7 @@ class IncrementalEstimator {
                                    const ObstacleMask& obstacles, const HeightPrior& prior,
                                    std::array<AlignerTarget, 3> targets, std::vector<cv::Mat>* temporal_skipped,
                                    SurfaceAlignerOptions ao, SurfaceState* state, TemporalInconsistency* moving,
-                                   FrameResult* res);
+                                   FrameResult* res, const Eigen::Isometry3d& predicted);
   /// Step 4 of a tracked frame: which vertices of `window` the finest level's `report` measured
   /// (enough textured pixels, not seen mostly through obstacles, not at grazing incidence from
   /// camera_position); counts the well-known ones and those that jumped from `prior_mean`.

@@ -144,6 +144,11 @@ struct AlignmentProblem {
   const std::vector<cv::Mat>* excluded = nullptr;
   /// Compute AlignmentReport::motion_information at the final state (one extra factorization).
   bool want_motion_information = false;
+  /// Optional other starting pose of the reference camera: evaluated with the state's own (one more
+  /// evaluation, the same working set; two more if taken) and taken when its cost per sample is
+  /// below alternative_win_ratio times the state's (AlignmentReport::started_from_alternative).
+  const Eigen::Isometry3d* alternative_start = nullptr;
+  double alternative_win_ratio = 1.0;
 };
 
 struct AlignmentReport {
@@ -155,7 +160,8 @@ struct AlignmentReport {
   int accepted_steps = 0;
   bool converged = false;
   bool degenerate = false;           ///< the normal equations could not be solved
-  double initial_cost = 0.0;
+  double initial_cost = 0.0;         ///< at the start taken (the alternative's, if it won)
+  bool started_from_alternative = false;  ///< AlignmentProblem::alternative_start won
   double final_cost = 0.0;
   double data_cost = 0.0, smoothness_cost = 0.0, prior_cost = 0.0;
   int valid_pixels = 0;              ///< pixel-pair samples in the data term at the end

@@ -572,7 +572,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   const auto t_joint = std::chrono::steady_clock::now();
   TemporalInconsistency moving;  // ground whose texture moved (the temporal pairs skip it)
   const AlignmentReport last = alignJointLevels(*pl, *pr, window, obstacles, prior, {stereo_t, prev_l, prev_r},
-                                                &temporal_skipped, ao, &state, &moving, &res);
+                                                &temporal_skipped, ao, &state, &moving, &res, predicted);
   res.joint_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_joint).count();
   std::copy_n(state.photometric.begin(), 3, res.photometric.begin());
   res.median_abs_residual_grey = last.median_abs_residual_grey;
@@ -674,7 +674,7 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
                                                        const HeightPrior& prior, std::array<AlignerTarget, 3> targets,
                                                        std::vector<cv::Mat>* temporal_skipped_io, SurfaceAlignerOptions ao,
                                                        SurfaceState* state_io, TemporalInconsistency* moving_out,
-                                                       FrameResult* res_io) {
+                                                       FrameResult* res_io, const Eigen::Isometry3d& predicted) {
   std::vector<cv::Mat>& temporal_skipped = *temporal_skipped_io;
   SurfaceState& state = *state_io;
   TemporalInconsistency& moving = *moving_out;
@@ -709,6 +709,7 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
   const int temporal_finest = effectiveTemporalFinestLevel(pl.level(0).image.cols);
   res.temporal_finest_level = temporal_finest;
   bool second_pass = false;  // the finest temporal level once more, after the consistency test
+  bool moving_texture = false;  // ... which took moving texture out of the temporal pairs
   for (int l = std::min(so.mesh_levels, options_.tracking_levels) - 1; l >= 0; --l) {
     prob.level = l;
     const bool temporal = l >= temporal_finest;
@@ -730,7 +731,19 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
         options_.motion_information && temporal && l == temporal_finest && !second_pass;
     const SurfaceAligner& aligner = l >= 2 ? (temporal ? aligner_motion_coarse : aligner_static_coarse)
                                            : (temporal ? (second_pass ? aligner_repeat : aligner_motion) : aligner_static);
+    // The second pass after the moving-texture test: the first estimated the motion with that
+    // texture in and was pulled by it (a car ahead and its shadow, toward standing still); the
+    // prediction did not look at this frame's images. Without the texture, the prediction is the
+    // start when its cost per sample is clearly lower (hypothesis_win_ratio, as another
+    // pre-alignment start must beat the prediction). Not after the visibility test alone: ground
+    // the previous camera did not see does not move, and starting from the prediction there cost
+    // the rolling scene's attitude (docs/results.md, "The second pass from the prediction").
+    const bool offer_prediction =
+        temporal && l == temporal_finest && second_pass && moving_texture && options_.repeat_from_prediction;
+    prob.alternative_start = offer_prediction ? &predicted : nullptr;
+    prob.alternative_win_ratio = options_.hypothesis_win_ratio;
     last = aligner.align(prob, level_state);
+    if (offer_prediction) res.repeat_from_prediction = last.started_from_alternative;
     res.reports.push_back(last);
     if (prob.want_motion_information) res.motion_information = last.motion_information;
     if (temporal && l == temporal_finest && last.target_median_abs_residual_grey.size() >= 2) {
@@ -763,6 +776,7 @@ AlignmentReport IncrementalEstimator::alignJointLevels(const ImagePyramid& pl, c
         targets[1].reference_excluded = &temporal_skipped;
         targets[2].reference_excluded = &temporal_skipped;
         repeat = true;
+        moving_texture = true;
       }
     }
     if (temporal && l == temporal_finest && !second_pass && options_.temporal_visibility.enabled && prev_left_) {

@@ -133,6 +133,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
     "temporal pairs skip samples on the previous frame's obstacle pixels", true);
   b("carry_moving_texture", &e.carry_moving_texture,
     "temporal pairs skip the texture flagged as moving at the same pixels in the last two frames (it moves with the vehicle)", true);
+  b("repeat_from_prediction", &e.repeat_from_prediction,
+    "the finest temporal level's second pass (after the moving-texture test) starts from the prediction when its cost per sample is below hypothesis_win_ratio times the first pass's pose's", true);
   b("temporal_visibility", &e.temporal_visibility.enabled,
     "temporal pairs skip ground the previous camera did not see (hidden by the surface itself)", true);
   d("temporal_visibility_tolerance", &e.temporal_visibility.inverse_depth_tolerance,
@@ -151,7 +153,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("hypothesis_accept_ratio", &e.hypothesis_accept_ratio,
     "a start is good enough below this times the usual pre-alignment cost", true);
   d("hypothesis_win_ratio", &e.hypothesis_win_ratio,
-    "with a velocity, another start replaces the prediction only below this times its cost", true);
+    "with a velocity, another start replaces the prediction only below this times its cost (and the prediction replaces the pose of the pass before repeat_from_prediction's second pass only below this times that pose's)", true);
   d("max_init_std_m", &e.max_init_std_m, "map heights less certain start from the extended surface [m]", true);
   d("motion_max_depth_m", &e.motion_max_depth_m, "levels estimating the motion use vertices up to this depth (0: all) [m]", true);
   i("final_undamped_step", &e.final_undamped_step, "almost undamped last step: 0 none, 1 finest level, 2 fine levels", true);

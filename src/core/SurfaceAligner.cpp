@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "stereo_ground_dem/aligner/AlignmentLevel.hpp"
@@ -106,12 +107,39 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   }
   Evaluation* ev = &ws.eval[0];
   Evaluation* trial_ev = &ws.eval[1];
+  SurfaceState trial;
+  // The evaluator's workspace (rasterization, slots) belongs to its last evaluation, which the
+  // solve and the report use: the start taken is evaluated last. Starts are compared by their
+  // cost per sample (as PoseSearch compares them): a pose that sees less of the ground has fewer
+  // samples, and one that sees none has none (infinite).
+  auto perSample = [](const Evaluation& e) {
+    long samples = 0;
+    for (const auto& pa : e.pair) samples += pa.valid + pa.outside;
+    return samples > 0 ? e.total() / static_cast<double>(samples) : std::numeric_limits<double>::infinity();
+  };
+  double alternative_cost = std::numeric_limits<double>::infinity();
+  if (problem.alternative_start) {
+    trial = state;
+    trial.camera_T_ground = *problem.alternative_start;
+    t0 = Clock::now();
+    evaluator.evaluate(trial, trial_ev);
+    report.evaluate_ms += ms(t0, Clock::now());
+    report.evaluations++;
+    alternative_cost = perSample(*trial_ev);
+  }
   t0 = Clock::now();
   evaluator.evaluate(state, ev);
   report.evaluate_ms += ms(t0, Clock::now());
   report.evaluations++;
+  if (alternative_cost < problem.alternative_win_ratio * perSample(*ev)) {
+    state = trial;
+    t0 = Clock::now();
+    evaluator.evaluate(state, ev);
+    report.evaluate_ms += ms(t0, Clock::now());
+    report.evaluations++;
+    report.started_from_alternative = true;
+  }
   report.initial_cost = ev->total();
-  SurfaceState trial;
   for (int it = 0; it < options_.max_iterations; ++it) {
     report.iterations = it + 1;
     t0 = Clock::now();

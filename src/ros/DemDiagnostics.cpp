@@ -110,6 +110,7 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   if (r.prealign_rejected) ++counts_.prealign_rejected;
   if (r.prealign_discarded > 0) ++counts_.prealign_discarded;
   if (r.carried_moving_pixels > 0) ++counts_.carried_moving;
+  if (r.repeat_from_prediction) ++counts_.repeat_from_prediction;
   switch (r.status) {
     case FrameStatus::kInitialized: ++counts_.initialized; consecutive_bad_ = 0; break;
     case FrameStatus::kTracked: ++counts_.tracked; consecutive_bad_ = 0; break;
@@ -207,6 +208,8 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("pre-alignment shift from the prediction last [m]", last_prealign_shift_m_);
   stat.add("frames skipping moving texture carried from the last two", counts_.carried_moving);
   stat.add("moving texture carried last [px at the test level]", last_carried_moving_pixels_);
+  stat.add("frames whose second temporal pass started from the prediction (moving texture pulled the first)",
+           counts_.repeat_from_prediction);
   stat.add("ground the previous camera did not see, last [px at the finest temporal level]", last_hidden_pixels_);
   stat.add("ground seen past the surface, last (excluded) [px at the obstacle test level]", last_far_pixels_);
   stat.add("vertices started from ground seen past the surface, last", last_far_seeded_vertices_);

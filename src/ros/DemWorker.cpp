@@ -321,6 +321,7 @@ void DemWorker::process(StereoFrame& f) {
   record.far_pixels = fr.far_pixels;
   record.far_seeded_vertices = fr.far_seeded_vertices;
   record.rising_seeded_vertices = fr.rising_seeded_vertices;
+  record.repeat_from_prediction = fr.repeat_from_prediction;
   record.wait_ms = (start - f.received).toSec() * 1e3;
   if (last_processed_stamp_s_ >= 0.0) record.stamp_gap_s = stamp_s - last_processed_stamp_s_;
   last_processed_stamp_s_ = stamp_s;

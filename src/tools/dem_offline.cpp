@@ -356,7 +356,7 @@ int runSequence(const Args& a) {
   std::ofstream alignments(a.out + "/alignments.csv");
   alignments << "frame,pass,level,pairs,motion,heights,iterations,accepted_steps,converged,evaluations,setup_ms,"
                 "evaluate_ms,raster_ms,solve_ms,working_triangles,active_vertices,valid_pixels,initial_cost,final_cost\n";
-  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,prealign_shift_m,prealign_rejected,prealign_discarded,carried_moving_pixels,hidden_pixels,far_pixels,far_seeded_vertices,far_carved_vertices,rising_seeded_vertices,far_refuted_vertices,message\n";
+  frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,prealign_shift_m,prealign_rejected,prealign_discarded,carried_moving_pixels,hidden_pixels,far_pixels,far_seeded_vertices,far_carved_vertices,rising_seeded_vertices,far_refuted_vertices,repeat_from_prediction,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
   std::vector<double> tum_stamps, ms_all;
   std::vector<Eigen::Vector2d> xy = saved.trajectory_xy;
@@ -444,7 +444,7 @@ int runSequence(const Args& a) {
            << fr.photometric[0].bias_grey << "," << fr.rectification.maxAbsPx(seq.rig(), 0.0) << ","
            << fr.stereo_residual_grey << "," << fr.temporal_residual_grey << "," << fr.moving_pixels << ","
            << attitude.height_m << "," << attitude.pitch_rad * kDeg << "," << attitude.roll_rad * kDeg << ","
-           << fr.prealign_shift_m << "," << (fr.prealign_rejected ? 1 : 0) << "," << fr.prealign_discarded << "," << fr.carried_moving_pixels << "," << fr.hidden_pixels << "," << fr.far_pixels << "," << fr.far_seeded_vertices << "," << fr.far_carved_vertices << "," << fr.rising_seeded_vertices << "," << fr.far_refuted_vertices << "," << msg
+           << fr.prealign_shift_m << "," << (fr.prealign_rejected ? 1 : 0) << "," << fr.prealign_discarded << "," << fr.carried_moving_pixels << "," << fr.hidden_pixels << "," << fr.far_pixels << "," << fr.far_seeded_vertices << "," << fr.far_carved_vertices << "," << fr.rising_seeded_vertices << "," << fr.far_refuted_vertices << "," << (fr.repeat_from_prediction ? 1 : 0) << "," << msg
            << "\n";
     if (!a.quiet) {
       const Eigen::Vector3d t = fr.camera0_T_camera.translation();

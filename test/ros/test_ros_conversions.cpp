@@ -480,7 +480,9 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   r.prealign_shift_m = 0.42;
   r.prealign_rejected = true;
   r.carried_moving_pixels = 137;
+  r.repeat_from_prediction = true;
   d.processed(r);
+  r.repeat_from_prediction = false;
   r.prealign_shift_m = 0.05;
   r.prealign_rejected = false;
   r.prealign_discarded = 3;  // three other starts ended beyond the bound
@@ -501,6 +503,7 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   EXPECT_EQ(c.prealign_rejected, 2);
   EXPECT_EQ(c.prealign_discarded, 1);
   EXPECT_EQ(c.carried_moving, 2);
+  EXPECT_EQ(c.repeat_from_prediction, 1);
   diagnostic_updater::DiagnosticStatusWrapper stat;
   d.diagnose(stat);
   std::map<std::string, std::string> kv;
@@ -510,6 +513,7 @@ TEST(DemDiagnostics, ShowsRejectedPreAlignmentsAndCarriedMovingTexture) {
   EXPECT_EQ(std::stod(kv["pre-alignment shift from the prediction last [m]"]), 0.61);
   EXPECT_EQ(kv["frames skipping moving texture carried from the last two"], "2");
   EXPECT_EQ(kv["moving texture carried last [px at the test level]"], "12");
+  EXPECT_EQ(kv["frames whose second temporal pass started from the prediction (moving texture pulled the first)"], "1");
   EXPECT_EQ(kv["ground the previous camera did not see, last [px at the finest temporal level]"], "345");
   EXPECT_EQ(kv["ground seen past the surface, last (excluded) [px at the obstacle test level]"], "67");
   EXPECT_EQ(kv["vertices started from ground seen past the surface, last"], "8");

@@ -48,6 +48,7 @@ class DemDiagnostics {
     int far_pixels = 0;             ///< ground seen past the surface (far_depth_ratio; obstacle test level)
     int far_seeded_vertices = 0;    ///< vertices started from its points or rays (FarGroundSeeds)
     int rising_seeded_vertices = 0; ///< vertices started on ground rising out of the surface (RisingGroundSeeds)
+    bool repeat_from_prediction = false;  ///< the second temporal pass started from the prediction (FrameResult)
   };
 
   /// `logger`: name for the log lines; `topics`: resolved input names (InputMonitor order).
@@ -90,6 +91,7 @@ class DemDiagnostics {
     long prealign_rejected = 0;  ///< frames whose pre-alignment was beyond the acceleration bound
     long prealign_discarded = 0;  ///< frames with other starts' pre-alignments beyond it (not candidates)
     long carried_moving = 0;     ///< frames that skipped moving texture carried from the last two
+    long repeat_from_prediction = 0;  ///< frames whose second temporal pass started from the prediction
   };
   Counts counts() const;
 
