@@ -145,7 +145,7 @@ struct AlignmentProblem {
   /// Compute AlignmentReport::motion_information at the final state (one extra factorization).
   bool want_motion_information = false;
   /// Optional other starting pose of the reference camera: evaluated with the state's own (one more
-  /// evaluation, the same working set; two more if taken) and taken when its cost per sample is
+  /// evaluation, the same working set) and taken when its cost per sample is
   /// below alternative_win_ratio times the state's (AlignmentReport::started_from_alternative).
   const Eigen::Isometry3d* alternative_start = nullptr;
   double alternative_win_ratio = 1.0;

@@ -108,8 +108,8 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   Evaluation* ev = &ws.eval[0];
   Evaluation* trial_ev = &ws.eval[1];
   SurfaceState trial;
-  // The evaluator's workspace (rasterization, slots) belongs to its last evaluation, which the
-  // solve and the report use: the start taken is evaluated last. Starts are compared by their
+  // An Evaluation holds all that the solve and the report need of its state (slots, sums, the
+  // triangles' planes and Jacobians), so the start taken keeps its own. Starts are compared by their
   // cost per sample (as PoseSearch compares them): a pose that sees less of the ground has fewer
   // samples, and one that sees none has none (infinite).
   auto perSample = [](const Evaluation& e) {
@@ -133,10 +133,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   report.evaluations++;
   if (alternative_cost < problem.alternative_win_ratio * perSample(*ev)) {
     state = trial;
-    t0 = Clock::now();
-    evaluator.evaluate(state, ev);
-    report.evaluate_ms += ms(t0, Clock::now());
-    report.evaluations++;
+    std::swap(ev, trial_ev);
     report.started_from_alternative = true;
   }
   report.initial_cost = ev->total();

@@ -9,6 +9,8 @@
 namespace stereo_ground_dem {
 
 namespace {
+bool lineOfSight(const sim::SyntheticScene& scene, const Eigen::Vector3d& camera, const Eigen::Vector3d& q);
+
 /// DemMetrics::obs_*: every cell of the obstacle layer with a value, by what the scene had near it.
 void obstacleLayer(const GroundGrid& grid, const cv::Mat& obstacles, const sim::SyntheticScene& scene,
                    const Eigen::Isometry3d& true_T_est, const std::vector<Eigen::Isometry3d>& c_T_g,
@@ -21,11 +23,22 @@ void obstacleLayer(const GroundGrid& grid, const cv::Mat& obstacles, const sim::
   m->obstacle_class = cv::Mat::zeros(grid.rows, grid.cols, CV_8U);
   constexpr double kNear = 0.5;  // [m]
   const double probe[5][2] = {{0, 0}, {kNear, 0}, {-kNear, 0}, {0, kNear}, {0, -kNear}};
-  auto inView = [&](Eigen::Vector3d q, size_t from) {
+  // In a frame's view: 4-30 m ahead, inside the image; with `unobstructed`, also not hidden from
+  // the camera by an obstacle at that frame's time (the mover that just left a cell hides it while
+  // it drives away from or toward the camera) or by the terrain.
+  auto inView = [&](Eigen::Vector3d q, size_t from, bool unobstructed) {
     q.z() = scene.terrainHeight(q.x(), q.y());
     for (size_t k = from; k < n; ++k) {
       const Eigen::Vector3d xc = c_T_g[k] * q;
-      if (xc.z() >= 4.0 && xc.z() <= 30.0 && std::abs(xc.x()) <= xc.z() * half_fov && xc.y() > 0.0) return true;
+      if (!(xc.z() >= 4.0 && xc.z() <= 30.0 && std::abs(xc.x()) <= xc.z() * half_fov && xc.y() > 0.0)) continue;
+      if (!unobstructed) return true;
+      const Eigen::Vector3d o = c_T_g[k].inverse().translation();
+      const Eigen::Vector3d d = q - o;
+      const double len = d.norm();
+      // up to 5 cm before the cell (no mover is within 0.5 m of it after it left)
+      if (scene.rayCaster().intersectObstacles(o, d, 1.0 - 0.05 / len, times[k]).hit()) continue;
+      if (!lineOfSight(scene, o, q)) continue;
+      return true;
     }
     return false;
   };
@@ -35,7 +48,7 @@ void obstacleLayer(const GroundGrid& grid, const cv::Mat& obstacles, const sim::
       {  // recall over the static footprints in view, whatever the layer says
         const Eigen::Vector3d q = true_T_est * Eigen::Vector3d(grid.xOfCol(c), grid.yOfRow(r), 0.0);
         const int id = scene.obstacleIdAt(q.x(), q.y(), times[0]);
-        if (id > 0 && !movingId(id) && inView(q, 0)) {
+        if (id > 0 && !movingId(id) && inView(q, 0, false)) {
           ++m->obs_static_in_view;
           m->obs_static_in_view_marked += std::isfinite(value) && value >= 0.5f;
         }
@@ -74,7 +87,7 @@ void obstacleLayer(const GroundGrid& grid, const cv::Mat& obstacles, const sim::
       }
       if (last_moving < 0 || near_moving_last) continue;
       // left by a moving obstacle: seen again by a later frame?
-      if (!inView(p, static_cast<size_t>(last_moving) + 1)) continue;
+      if (!inView(p, static_cast<size_t>(last_moving) + 1, true)) continue;
       ++m->obs_path_seen;
       m->obs_path_ghost += marked;
       cls = marked ? 4 : 3;

@@ -28,9 +28,8 @@ struct TriangleGeometry {
   std::array<int, 3> local{};        ///< compact active indices
   std::array<int, 9> value_index{};  ///< positions of its 3x3 block in the height matrix' values
   Eigen::Matrix3d heights_to_plane;
-  // written by the last evaluation:
-  Eigen::Vector3d m = Eigen::Vector3d::Zero();      ///< the plane in the reference camera (m^T X = 1)
-  Eigen::Matrix3d dm_dz = Eigen::Matrix3d::Zero();  ///< d m / d (its three heights)
+  // written by each evaluation, for its own use (the solve reads Evaluation::slot_m, slot_dm_dz):
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();  ///< the plane in the reference camera (m^T X = 1)
   bool drawn = false;
 };
 

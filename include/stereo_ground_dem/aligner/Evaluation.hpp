@@ -65,6 +65,11 @@ struct Evaluation {
   /// Triangles that own at least one pixel get a slot; accumulators are per slot.
   std::vector<int> slot_of;   ///< triangle -> slot or -1
   std::vector<int> slot_tri;  ///< slot -> triangle
+  // Per slot, the triangle's plane at this evaluation's state and its Jacobian: the step solved
+  // from these sums must linearize at the same state (the level's TriangleGeometry holds the
+  // last evaluation's, which after a rejected trial is not the state's).
+  std::vector<Eigen::Vector3d> slot_m;    ///< m (m^T X = 1 in the reference camera)
+  std::vector<Eigen::Matrix3d> slot_dm_dz;  ///< d m / d (its three heights)
   // Per slot (each thread writes the slots of its own range):
   std::vector<std::vector<double>> tri;  ///< [pair] stride * slots
   std::vector<int> tri_pixels;

@@ -21,7 +21,8 @@ class HeightSystemSolver {
  public:
   explicit HeightSystemSolver(const AlignmentLevel& level) : level_(level), hzz_(level.heightPattern()) {}
 
-  /// The step at state s evaluated as `ev` (whose planes the level's triangles hold). Fills the
+  /// The step at state s evaluated as `ev` (linearized with ev's own planes, whatever was
+  /// evaluated since). Fills the
   /// report's vertex_information (the data term's diagonal) and, with need_schur or a motion-only
   /// problem, its motion_information; report->degenerate when the system cannot be solved.
   Step solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report, bool need_schur = false);

@@ -27,7 +27,8 @@ struct EvaluatorWorkspace {
 
 class PhotometricEvaluator {
  public:
-  /// The level's triangles record the planes of the last evaluated state (TriangleGeometry::m).
+  /// The Evaluation keeps its state's triangle planes and Jacobians (Evaluation::slot_m,
+  /// slot_dm_dz); the level's triangles hold the last evaluated state's planes for its own use.
   PhotometricEvaluator(AlignmentLevel& level, EvaluatorWorkspace* workspace) : level_(level), ws_(workspace) {}
 
   void evaluate(const SurfaceState& s, Evaluation* ev);

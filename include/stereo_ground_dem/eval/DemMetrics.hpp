@@ -42,7 +42,9 @@ struct DemMetrics {
   // processed frames' times; "near" a footprint = within 0.5 m of it (the mask's dilation).
   int obs_free_known = 0;     ///< cells with a value that no footprint came near, ever
   int obs_free_flagged = 0;   ///< ... of them marked (false alarms on free ground)
-  int obs_path_seen = 0;      ///< cells a moving obstacle came near and left, then seen (4-30 m ahead, in view) by a later frame
+  /// cells a moving obstacle came near and left, then seen by a later frame (4-30 m ahead, in the
+  /// image, the line of sight free of obstacles at that frame's time and of terrain)
+  int obs_path_seen = 0;
   int obs_path_ghost = 0;     ///< ... of them still marked at the end (ghosts)
   int obs_static_known = 0;   ///< cells with a value inside a static footprint
   int obs_static_marked = 0;  ///< ... of them marked

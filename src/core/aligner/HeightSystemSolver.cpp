@@ -113,8 +113,10 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
       const Eigen::Vector3d de(acc[6], acc[7], acc[8]);
       Matrix32d dp;
       dp << acc[9], acc[10], acc[11], acc[12], acc[13], acc[14];
-      const double scale = PlaneGeometry::deltaScale(t.m, p.t_prime);
-      const Eigen::Matrix3d a = scale * t.dm_dz;  // delta = a * dz
+      // the plane and its Jacobian at the evaluation's state (not the level's last evaluation)
+      const Eigen::Vector3d& m = ev.slot_m[k2];
+      const double scale = PlaneGeometry::deltaScale(m, p.t_prime);
+      const Eigen::Matrix3d a = scale * ev.slot_dm_dz[k2];  // delta = a * dz
       if (prob.estimate_heights) {
         const Eigen::Matrix3d atd = ks * a.transpose() * dd;
         const Eigen::Matrix3d hz = atd * a;
@@ -133,7 +135,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
         Matrix36d hzm;
         if (rig) {
           // bm = d delta / d xi = scale [-m m^T, -[m]_x] (PlaneGeometry::cameraPlaneMotionJacobian)
-          const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(t.m);
+          const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(m);
           const Matrix36d dbm = ks * (dd * bm);  // ks dd bm, shared by three blocks
           if (prob.estimate_heights) hzm.noalias() = a.transpose() * dbm;
           for (int r = 0; r < 6; ++r) {

@@ -205,12 +205,15 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
   }
   const size_t ns = ev->slot_tri.size();
   hom.resize(np * ns);
+  ev->slot_m.resize(ns);
+  ev->slot_dm_dz.resize(ns);
   auto geometry = [&](size_t begin, size_t end) {
     for (size_t k2 = begin; k2 < end; ++k2) {
       TriangleGeometry& t = tris[static_cast<size_t>(ev->slot_tri[k2])];
       const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
       const Eigen::Vector3d pqc = t.heights_to_plane * z;
-      t.dm_dz = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
+      ev->slot_m[k2] = t.m;
+      ev->slot_dm_dz[k2] = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
       // H_j = K (R_j + t_j m^T) K^-1 = K R_j K^-1 + (K t_j) (K^-T m)^T
       const Eigen::Vector3d mk = kinv.transpose() * t.m;
       for (size_t j = 0; j < np; ++j) {
