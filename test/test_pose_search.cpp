@@ -133,6 +133,14 @@ struct MappedDrive {
     return p;
   }
 
+  /// The same at pyramid level 2 with all three pairs, heights estimated (update weight 1).
+  AlignmentProblem heightsProblem(const GroundGrid& window, Eigen::VectorXd* heights) const {
+    AlignmentProblem p = problem(window, 2, 3, heights);
+    p.estimate_heights = true;
+    p.update_weight = Eigen::VectorXd::Constant(window.vertexCount(), 1.0);
+    return p;
+  }
+
   std::unique_ptr<StereoEstimator> stereo;
   std::unique_ptr<MapView> view;
   MotionPredictor predictor;
@@ -431,9 +439,7 @@ TEST(SurfaceAligner, AStepIsSolvedWithItsOwnEvaluationsPlanes) {
   MappedDrive d;
   const GroundGrid window = d.view->window(d.true_camera_T_ground);
   Eigen::VectorXd heights;
-  AlignmentProblem prob = d.problem(window, 2, 3, &heights);
-  prob.estimate_heights = true;
-  prob.update_weight = Eigen::VectorXd::Constant(window.vertexCount(), 1.0);
+  const AlignmentProblem prob = d.heightsProblem(window, &heights);
   SurfaceAlignerOptions ao = d.options.stereo.alignerOptions();
   ao.estimate_motion = true;
   SurfaceState s;
@@ -470,4 +476,60 @@ TEST(SurfaceAligner, AStepIsSolvedWithItsOwnEvaluationsPlanes) {
   EXPECT_EQ((step_again.dtheta - step.dtheta).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ((step_again.dglobal - step.dglobal).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ((again.vertex_information - first.vertex_information).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// The final undamped step is solved from the last linearization. When the last Gauss-Newton step
+// raised the cost at every halving (a stall), that linearization already failed to give a descent,
+// and the final step is not tried: no evaluations are spent on it. After accepted steps it is.
+// Heights and motion at pyramid level 2 of frame 2 of the mapped drive, full steps only (no
+// halvings), so that each iteration is one evaluation.
+TEST(SurfaceAligner, NoFinalStepAfterAStall) {
+  MappedDrive d;
+  const GroundGrid window = d.view->window(d.true_camera_T_ground);
+  Eigen::VectorXd heights;
+  const AlignmentProblem prob = d.heightsProblem(window, &heights);
+  SurfaceAlignerOptions ao = d.options.stereo.alignerOptions();
+  ao.final_undamped_step = true;  // as IncrementalEstimator sets it for its fine levels
+  ao.estimate_motion = true;
+  ao.max_step_halvings = 0;
+  auto start = [&] {  // 3 cm above the map's heights: the first steps lower the cost
+    SurfaceState s;
+    s.camera_T_ground = d.true_camera_T_ground;
+    s.heights = heights.array() + 0.03;
+    s.photometric.assign(prob.targets.size(), PhotometricParams());
+    return s;
+  };
+  // Iterated until a step raises the cost (no convergence test).
+  ao.max_iterations = 40;
+  ao.converged_height_step_m = 0.0;
+  ao.converged_translation_m = 0.0;
+  ao.converged_rotation_rad = 0.0;
+  ao.converged_relative_decrease = 0.0;
+  SurfaceState s = start();
+  const AlignmentReport stalled = SurfaceAligner(ao).align(prob, s);
+  std::printf("until a stall: %d iterations, %d accepted, %d evaluations\n", stalled.iterations, stalled.accepted_steps,
+              stalled.evaluations);
+  ASSERT_TRUE(stalled.stalled) << "the scene as described: a full step raises the cost within 40 iterations";
+  ASSERT_GE(stalled.accepted_steps, 1) << "the scene as described: the first step lowers the cost";
+  EXPECT_EQ(stalled.accepted_steps, stalled.iterations - 1);
+  EXPECT_EQ(stalled.final_step_evaluations, 0);
+  EXPECT_EQ(stalled.evaluations, 1 + stalled.iterations);
+
+  // The stalled run ends where its accepted steps put it: as the same iterations without a final step.
+  SurfaceAlignerOptions no_final = ao;
+  no_final.final_undamped_step = false;
+  no_final.max_iterations = stalled.accepted_steps;
+  SurfaceState accepted_only = start();
+  SurfaceAligner(no_final).align(prob, accepted_only);
+  EXPECT_EQ((s.heights - accepted_only.heights).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(distanceM(s.camera_T_ground, accepted_only.camera_T_ground), 0.0);
+
+  // The accepted iterations alone, not stalled: the final step is tried (once: no halvings).
+  ao.max_iterations = stalled.accepted_steps;
+  s = start();
+  const AlignmentReport accepted = SurfaceAligner(ao).align(prob, s);
+  EXPECT_FALSE(accepted.stalled);
+  EXPECT_EQ(accepted.iterations, ao.max_iterations);
+  EXPECT_EQ(accepted.final_step_evaluations, 1);
+  EXPECT_EQ(accepted.evaluations, 1 + accepted.iterations + 1);
 }

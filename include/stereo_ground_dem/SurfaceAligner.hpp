@@ -159,6 +159,10 @@ struct AlignmentReport {
   int iterations = 0;
   int accepted_steps = 0;
   bool converged = false;
+  /// The last Gauss-Newton step raised the cost at every halving: the iterations stopped there and
+  /// the final undamped step, solved from the same linearization, was not tried.
+  bool stalled = false;
+  int final_step_evaluations = 0;    ///< evaluations of the final undamped step's trials
   bool degenerate = false;           ///< the normal equations could not be solved
   double initial_cost = 0.0;         ///< at the start taken (the alternative's, if it won)
   bool started_from_alternative = false;  ///< AlignmentProblem::alternative_start won

@@ -355,7 +355,8 @@ int runSequence(const Args& a) {
   // every Gauss-Newton pass of every frame, in the order run: where a frame's time goes
   std::ofstream alignments(a.out + "/alignments.csv");
   alignments << "frame,pass,level,pairs,motion,heights,iterations,accepted_steps,converged,evaluations,setup_ms,"
-                "evaluate_ms,raster_ms,solve_ms,working_triangles,active_vertices,valid_pixels,initial_cost,final_cost\n";
+                "evaluate_ms,raster_ms,solve_ms,working_triangles,active_vertices,valid_pixels,initial_cost,final_cost,stalled,"
+                "final_step_evaluations\n";
   frames << "frame,stamp_s,status,ms,median_abs_residual_grey,fused_vertices,obstacle_pixels,gain_lr,bias_lr,rectification_max_px,stereo_residual_grey,temporal_residual_grey,moving_pixels,ground_height_m,ground_pitch_deg,ground_roll_deg,prealign_shift_m,prealign_rejected,prealign_discarded,carried_moving_pixels,hidden_pixels,far_pixels,far_seeded_vertices,far_carved_vertices,rising_seeded_vertices,far_refuted_vertices,repeat_from_prediction,message\n";
   std::vector<Eigen::Isometry3d> poses, tum_poses;
   std::vector<double> tum_stamps, ms_all;
@@ -428,7 +429,7 @@ int runSequence(const Args& a) {
                  << r.iterations << "," << r.accepted_steps << "," << r.converged << "," << r.evaluations << ","
                  << r.setup_ms << "," << r.evaluate_ms << "," << r.raster_ms << "," << r.solve_ms << ","
                  << r.working_triangles << "," << r.active_vertices << "," << r.valid_pixels << "," << r.initial_cost
-                 << "," << r.final_cost << "\n";
+                 << "," << r.final_cost << "," << r.stalled << "," << r.final_step_evaluations << "\n";
     }
     timing << i << "," << fr.time_ms << "," << fr.pyramid_ms << "," << fr.prealign_ms << "," << fr.obstacle_ms << ","
            << fr.joint_ms << "," << fr.time_ms - fr.pyramid_ms - fr.prealign_ms - fr.obstacle_ms - fr.joint_ms << ","
