@@ -23,7 +23,8 @@ SAN="-fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-fram
 TESTS=(test_estimators test_obstacles test_bad_input test_sim test_offline test_parser_fuzz test_traversability
        test_core test_io)
 cd "$WS"
-# -O1: readable reports and a build that fits the CI budget; NDEBUG as in Release.
+# -O1: readable reports and a build that fits the CI budget; NDEBUG as in Release. (-O2 runs the
+# tests 1.4 times faster but takes 18 instead of 9-14 minutes to build: no net gain, 2026-12-06.)
 catkin_make -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" \
   -DCMAKE_CXX_FLAGS="$SAN" -DCMAKE_EXE_LINKER_FLAGS="$SAN" -DCMAKE_SHARED_LINKER_FLAGS="$SAN" \
   -DCATKIN_ENABLE_TESTING=ON -j"$JOBS" dem_offline sgd_render "${TESTS[@]}" > "$WS/build.log" 2>&1 \

@@ -15,8 +15,21 @@ with two tests that use neither the direct estimator nor the GPS:
    (an earlier frame) and from 5-8 m (a later one), both placed with the trajectory; the median
    difference far - near [cm] per stretch. Stereo's own range bias makes it a constant; a
    trajectory whose vertical motion is wrong between the two frames makes it vary along the clip.
+3. Direction of travel: the camera's displacement from frame k to k+s (s = --direction-stride)
+   in camera k's frame, from the images alone by OpenCV's five-point essential matrix (RANSAC,
+   0.5 px) of Shi-Tomasi corners tracked by Lucas-Kanade; per trajectory the median difference
+   of its own displacement's yaw (right +) and elevation (up +) against it [deg]. A camera frame
+   rotated against the true one by a constant mounting error (a GPS/INS-to-camera calibration)
+   shows here as a constant offset, and bends every trajectory expressed in it: the end error of
+   each other trajectory is printed against the first as given and against the first with its
+   offset rotated out (its positions in the camera frame the images define).
+4. Step length: the SGBM 3-D points of frame k's corners (4-40 m) and their Lucas-Kanade tracks in
+   frame k+1 give the step by solvePnPRansac (1 px) and Levenberg-Marquardt; per trajectory the
+   median ratio of its own step length to it. The stereo calibration sets the images' scale: a
+   ratio above 1 for every trajectory that follows the images, GPS/INS or not, is the baseline's
+   scale against the GPS's.
 
-Usage: scripts/trajectory_consistency.py --sequence DIR [--frames-apart N] [--json FILE]
+Usage: scripts/trajectory_consistency.py --sequence DIR [--frames-apart N] [--direction-stride S] [--json FILE]
                                          NAME=TRAJECTORY [NAME=TRAJECTORY ...]
   TRAJECTORY: KITTI format (pose of left camera k in camera 0's frame), e.g. DIR/poses.txt or a
   dem_offline OUT/trajectory_kitti.txt. docs/results.md ("The real clips' ground truth") has the
@@ -62,6 +75,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sequence", required=True)
     ap.add_argument("--frames-apart", type=int, default=3, help="n of the reprojection test")
+    ap.add_argument("--direction-stride", type=int, default=4, help="s of the direction test")
     ap.add_argument("--stretch", type=int, default=5, help="frames per row of the tables")
     ap.add_argument("--json", help="write the figures as JSON")
     ap.add_argument("trajectories", nargs="+", metavar="NAME=TRAJECTORY")
@@ -155,6 +169,88 @@ def main():
                 rows.append((np.median([f for f, _ in near]), np.median([z for _, z in far]) - np.median([z for _, z in near])))
         near_far.append(np.array(rows).reshape(-1, 2))
 
+    # 3. direction of travel from the essential matrix
+    stride = a.direction_stride
+    kmat = np.array([[fx, 0.0, cx], [0.0, fx, cy], [0.0, 0.0, 1.0]])
+
+    def angles(d):  # yaw (right +), elevation (up +) [deg] of a displacement in the camera frame
+        return np.degrees(np.arctan2(d[0], d[2])), np.degrees(np.arctan2(-d[1], d[2]))
+
+    direction = []  # (frame, inliers, images' (yaw, elevation), per trajectory (yaw, elevation) - images')
+    for k in range(n_frames - stride):
+        if np.linalg.norm((np.linalg.inv(trajs[0][k]) @ trajs[0][k + stride])[:3, 3]) < 0.3:
+            continue  # standing still: no direction
+        corners = cv2.goodFeaturesToTrack(left[k], 2000, 0.01, 8)
+        if corners is None:
+            continue
+        cur, alive = corners, np.ones(len(corners), bool)
+        for j in range(k, k + stride):  # frame by frame, as in test 1
+            nxt, st, _ = cv2.calcOpticalFlowPyrLK(left[j], left[j + 1], cur, None, **lk)
+            back, st2, _ = cv2.calcOpticalFlowPyrLK(left[j + 1], left[j], nxt, None, **lk)
+            alive &= (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm((back - cur).reshape(-1, 2), axis=1) < 0.5)
+            cur = nxt
+        p0, p1 = corners.reshape(-1, 2)[alive], cur.reshape(-1, 2)[alive]
+        if len(p0) < 50:
+            continue
+        e, mask = cv2.findEssentialMat(p0, p1, kmat, cv2.RANSAC, 0.999, 0.5)
+        if e is None or e.shape != (3, 3):
+            continue
+        inliers, r, t, mask = cv2.recoverPose(e, p0, p1, kmat, mask=mask)
+        c = (-r.T @ t).ravel()  # camera k+s's centre in camera k's frame, unit length
+        if inliers < 50 or c[2] <= 0.0:
+            continue
+        img = angles(c)
+        offs = []
+        for tr in trajs:
+            yaw, el = angles((np.linalg.inv(tr[k]) @ tr[k + stride])[:3, 3])
+            offs.append((yaw - img[0], el - img[1]))
+        direction.append((k, int(inliers), img, offs))
+    dir_offset = []  # per trajectory: median (yaw, elevation) offset against the images [deg]
+    for i in range(len(names)):
+        o = np.array([d[3][i] for d in direction]).reshape(-1, 2)
+        dir_offset.append([float(np.median(o[:, 0])), float(np.median(o[:, 1]))] if len(o) else [float("nan")] * 2)
+    # the first trajectory's positions in the camera frame the images define: its offset rotated out
+    yaw0, el0 = np.radians(-dir_offset[0][0]), np.radians(-dir_offset[0][1])
+    rot_yaw = np.array([[np.cos(yaw0), 0.0, np.sin(yaw0)], [0.0, 1.0, 0.0], [-np.sin(yaw0), 0.0, np.cos(yaw0)]])
+    rot_el = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(el0), -np.sin(el0)], [0.0, np.sin(el0), np.cos(el0)]])
+    first = np.array([t[:3, 3] for t in trajs[0][:n_frames]])
+    first_rotated = first @ (rot_el @ rot_yaw).T
+    path = float(np.sum(np.linalg.norm(np.diff(first, axis=0), axis=1)))
+    end_error = []  # per other trajectory: end error [m] against the first, as given and rotated
+    for t in trajs[1:]:
+        end = t[n_frames - 1][:3, 3]
+        end_error.append((float(np.linalg.norm(end - first[-1])), float(np.linalg.norm(end - first_rotated[-1]))))
+
+    # 4. step length against a stereo PnP of the images
+    length_ratio = [[] for _ in trajs]
+    for k in range(n_frames - 1):
+        corners = cv2.goodFeaturesToTrack(left[k], 2000, 0.01, 8)
+        if corners is None:
+            continue
+        p = corners.reshape(-1, 2)
+        d = disp[k][np.round(p[:, 1]).astype(int), np.round(p[:, 0]).astype(int)]
+        z = fx * baseline / np.maximum(d, 1e-3)
+        ok = (d > 1.0) & (z > 4.0) & (z < 40.0)
+        p, z = p[ok], z[ok]
+        xyz = np.column_stack([(p[:, 0] - cx) * z / fx, (p[:, 1] - cy) * z / fx, z])
+        cur = p.astype(np.float32).reshape(-1, 1, 2)
+        nxt, st, _ = cv2.calcOpticalFlowPyrLK(left[k], left[k + 1], cur, None, **lk)
+        back, st2, _ = cv2.calcOpticalFlowPyrLK(left[k + 1], left[k], nxt, None, **lk)
+        alive = (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm((back - cur).reshape(-1, 2), axis=1) < 0.5)
+        if alive.sum() < 50:
+            continue
+        obj, img = xyz[alive].astype(np.float64), nxt.reshape(-1, 2)[alive].astype(np.float64)
+        found, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, kmat, None, iterationsCount=300, reprojectionError=1.0)
+        if not found or inl is None or len(inl) < 30:
+            continue
+        rvec, tvec = cv2.solvePnPRefineLM(obj[inl[:, 0]], img[inl[:, 0]], kmat, None, rvec, tvec)
+        step = float(np.linalg.norm(tvec))  # |t| = |camera k+1's centre| in camera k's frame
+        if step < 0.3:
+            continue
+        for i, tr in enumerate(trajs):
+            length_ratio[i].append(float(np.linalg.norm((np.linalg.inv(tr[k]) @ tr[k + 1])[:3, 3])) / step)
+    step_ratio = [float(np.median(r)) if r else float("nan") for r in length_ratio]
+
     width = max(12, max(len(s) for s in names))
     print(f"{a.sequence}: {n_frames} frames")
     print(f"\n1. reprojection error of tracked SGBM corners over {n} frames, median [px], by start frame")
@@ -185,12 +281,28 @@ def main():
         col = col[np.isfinite(col)]
         spread.append(float(col.max() - col.min()) if len(col) else float("nan"))
     print("range (max-min)  " + "  ".join(f"{v:{width}.1f}" for v in spread))
+    print(f"\n3. direction of travel over {stride} frames against the images' (essential matrix), "
+          f"median of the trajectory's minus the images' [deg]; {len(direction)} frames")
+    print("                 " + "  ".join(f"{s:>{width}s}" for s in names))
+    print("yaw (right +)    " + "  ".join(f"{o[0]:{width}.3f}" for o in dir_offset))
+    print("elevation (up +) " + "  ".join(f"{o[1]:{width}.3f}" for o in dir_offset))
+    for name, (given, rotated) in zip(names[1:], end_error):
+        print(f"end error of {name} against {names[0]}: {given:.3f} m = {100 * given / path:.2f} % of {path:.1f} m; "
+              f"against {names[0]} with its offset rotated out: {rotated:.3f} m = {100 * rotated / path:.2f} %")
+    print(f"\n4. step length against the images' (stereo PnP), median ratio; {len(length_ratio[0])} frames")
+    print("                 " + "  ".join(f"{s:>{width}s}" for s in names))
+    print("length / PnP's   " + "  ".join(f"{v:{width}.4f}" for v in step_ratio))
     if a.json:
         json.dump(dict(sequence=a.sequence, frames=n_frames, frames_apart=n, names=names,
                        reprojection_px=dict(zip(names, overall)),
                        reprojection_by_start=[dict(frame=r[0], points=r[1], px=dict(zip(names, r[2]))) for r in reproj],
                        near_minus_far_cm=[dict(frame=s, cm=dict(zip(names, row))) for s, row in table],
-                       near_minus_far_range_cm=dict(zip(names, spread))), open(a.json, "w"), indent=1)
+                       near_minus_far_range_cm=dict(zip(names, spread)),
+                       direction_stride=stride, direction_frames=len(direction),
+                       direction_offset_deg={n: dict(yaw=o[0], elevation=o[1]) for n, o in zip(names, dir_offset)},
+                       end_error_m={n: dict(as_given=g, offset_rotated_out=r) for n, (g, r) in zip(names[1:], end_error)},
+                       path_m=path, step_length_over_pnp=dict(zip(names, step_ratio))),
+                  open(a.json, "w"), indent=1)
 
 
 if __name__ == "__main__":
