@@ -101,25 +101,34 @@ def main():
     # 1. reprojection of tracked corners over n frames
     n = a.frames_apart
     lk = dict(winSize=(21, 21), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
-    reproj = []  # (start frame, points, median error per trajectory)
-    for k in range(n_frames - n):
-        corners = cv2.goodFeaturesToTrack(left[k], 1500, 0.01, 8)
+
+    def stereo_corners(k, count, max_depth):  # frame k's corners with SGBM depth 4..max_depth m
+        corners = cv2.goodFeaturesToTrack(left[k], count, 0.01, 8)
         if corners is None:
-            continue
+            return None, None
         p = corners.reshape(-1, 2)
         d = disp[k][np.round(p[:, 1]).astype(int), np.round(p[:, 0]).astype(int)]
         z = fx * baseline / np.maximum(d, 1e-3)
-        ok = (d > 1.0) & (z > 4.0) & (z < 30.0)
+        ok = (d > 1.0) & (z > 4.0) & (z < max_depth)
         p, z = p[ok], z[ok]
-        xyz = np.column_stack([(p[:, 0] - cx) * z / fx, (p[:, 1] - cy) * z / fx, z])
-        cur = p.astype(np.float32).reshape(-1, 1, 2)
-        alive = np.ones(len(p), bool)
-        for j in range(k, k + n):
+        return p.astype(np.float32).reshape(-1, 1, 2), np.column_stack([(p[:, 0] - cx) * z / fx, (p[:, 1] - cy) * z / fx, z])
+
+    def track(k, steps, points):  # frame by frame to k + steps, forward-backward error < 0.5 px
+        cur, alive = points, np.ones(len(points), bool)
+        for j in range(k, k + steps):
             nxt, st, _ = cv2.calcOpticalFlowPyrLK(left[j], left[j + 1], cur, None, **lk)
             back, st2, _ = cv2.calcOpticalFlowPyrLK(left[j + 1], left[j], nxt, None, **lk)
             alive &= (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm((back - cur).reshape(-1, 2), axis=1) < 0.5)
             cur = nxt
-        q, x = cur.reshape(-1, 2)[alive], xyz[alive]
+        return cur.reshape(-1, 2), alive
+
+    reproj = []  # (start frame, points, median error per trajectory)
+    for k in range(n_frames - n):
+        pts, xyz = stereo_corners(k, 1500, 30.0)
+        if pts is None:
+            continue
+        cur, alive = track(k, n, pts)
+        q, x = cur[alive], xyz[alive]
         if len(q) < 30:
             continue
         errs = []
@@ -183,13 +192,8 @@ def main():
         corners = cv2.goodFeaturesToTrack(left[k], 2000, 0.01, 8)
         if corners is None:
             continue
-        cur, alive = corners, np.ones(len(corners), bool)
-        for j in range(k, k + stride):  # frame by frame, as in test 1
-            nxt, st, _ = cv2.calcOpticalFlowPyrLK(left[j], left[j + 1], cur, None, **lk)
-            back, st2, _ = cv2.calcOpticalFlowPyrLK(left[j + 1], left[j], nxt, None, **lk)
-            alive &= (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm((back - cur).reshape(-1, 2), axis=1) < 0.5)
-            cur = nxt
-        p0, p1 = corners.reshape(-1, 2)[alive], cur.reshape(-1, 2)[alive]
+        cur, alive = track(k, stride, corners)
+        p0, p1 = corners.reshape(-1, 2)[alive], cur[alive]
         if len(p0) < 50:
             continue
         e, mask = cv2.findEssentialMat(p0, p1, kmat, cv2.RANSAC, 0.999, 0.5)
@@ -224,22 +228,13 @@ def main():
     # 4. step length against a stereo PnP of the images
     length_ratio = [[] for _ in trajs]
     for k in range(n_frames - 1):
-        corners = cv2.goodFeaturesToTrack(left[k], 2000, 0.01, 8)
-        if corners is None:
+        pts, xyz = stereo_corners(k, 2000, 40.0)
+        if pts is None:
             continue
-        p = corners.reshape(-1, 2)
-        d = disp[k][np.round(p[:, 1]).astype(int), np.round(p[:, 0]).astype(int)]
-        z = fx * baseline / np.maximum(d, 1e-3)
-        ok = (d > 1.0) & (z > 4.0) & (z < 40.0)
-        p, z = p[ok], z[ok]
-        xyz = np.column_stack([(p[:, 0] - cx) * z / fx, (p[:, 1] - cy) * z / fx, z])
-        cur = p.astype(np.float32).reshape(-1, 1, 2)
-        nxt, st, _ = cv2.calcOpticalFlowPyrLK(left[k], left[k + 1], cur, None, **lk)
-        back, st2, _ = cv2.calcOpticalFlowPyrLK(left[k + 1], left[k], nxt, None, **lk)
-        alive = (st.ravel() == 1) & (st2.ravel() == 1) & (np.linalg.norm((back - cur).reshape(-1, 2), axis=1) < 0.5)
+        cur, alive = track(k, 1, pts)
         if alive.sum() < 50:
             continue
-        obj, img = xyz[alive].astype(np.float64), nxt.reshape(-1, 2)[alive].astype(np.float64)
+        obj, img = xyz[alive].astype(np.float64), cur[alive].astype(np.float64)
         found, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, kmat, None, iterationsCount=300, reprojectionError=1.0)
         if not found or inl is None or len(inl) < 30:
             continue
