@@ -268,10 +268,10 @@ TEST_P(RealClip, MappedWithinItsMeasuredFigures) {
 // reprojection 2.32 / 2.46 px overall, 4.0-4.2 px in the stretch of the wander.
 TEST(TrajectoryConsistency, SeesAVerticalWanderAndAMountingRotationOfExactPoses) {
   // scripts/trajectory_consistency.py's tests 2-4 (docs/results.md, "The real clips' ground
-  // truth"). Three trajectories of a rendered flat drive: a camera mounted 0.8 deg to the right and 0.3 deg
-  // up against the true one (the poses of a GPS/INS whose camera calibration is off: every pose
-  // T_k becomes M T_k M^T, M rotating directions by those angles), the exact poses, and the exact
-  // poses climbing 25 cm between frames 10 and 25 with the attitude unchanged.
+  // truth"). Three trajectories of a rendered flat drive: a camera mounted 0.8 deg to the right
+  // and 0.3 deg up against the true one (the poses of a GPS/INS whose camera calibration is off:
+  // every pose T_k becomes M T_k M^T, M rotating directions by those angles), the exact poses,
+  // and the exact poses climbing 25 cm between frames 10 and 25 with the attitude unchanged.
   const fs::path dir = fs::temp_directory_path() / ("sgd_consistency_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   const std::string seq = (dir / "flat").string();
