@@ -25,9 +25,8 @@ with two tests that use neither the direct estimator nor the GPS:
    offset rotated out (its positions in the camera frame the images define).
 4. Step length: the SGBM 3-D points of frame k's corners (4-40 m) and their Lucas-Kanade tracks in
    frame k+1 give the step by solvePnPRansac (1 px) and Levenberg-Marquardt; per trajectory the
-   median ratio of its own step length to it. The stereo calibration sets the images' scale: a
-   ratio above 1 for every trajectory that follows the images, GPS/INS or not, is the baseline's
-   scale against the GPS's.
+   median ratio of its own step length to it. The PnP has a bias of its own (a rendered drive's
+   exact poses score 0.9939): compare the trajectories with each other, not with 1.
 
 Usage: scripts/trajectory_consistency.py --sequence DIR [--frames-apart N] [--direction-stride S] [--json FILE]
                                          NAME=TRAJECTORY [NAME=TRAJECTORY ...]
