@@ -57,16 +57,29 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
   std::vector<TriangleRasterizer::Triangle>& projected = ws_->projected;
   projected.clear();
   const size_t nt = tris.size();
+  // The pixel centres a triangle can cover (TriangleRasterizer::draw's bounds): none, and it is
+  // not drawn, before its plane is computed (most triangles of the coarse levels).
+  const int margin = opt.border_margin_px;
+  const int row_max = level_.height() - 1 - margin, col_max = level_.width() - 1 - margin;
   for (size_t i = 0; i < nt; ++i) {
     TriangleGeometry& t = tris[i];
     t.drawn = false;
+    const size_t l0 = static_cast<size_t>(t.local[0]), l1 = static_cast<size_t>(t.local[1]),
+                 l2 = static_cast<size_t>(t.local[2]);
+    if (!vertex_ok_[l0] || !vertex_ok_[l1] || !vertex_ok_[l2]) continue;
+    {
+      const double vmin = std::min({vertex_v_[l0], vertex_v_[l1], vertex_v_[l2]});
+      const double vmax = std::max({vertex_v_[l0], vertex_v_[l1], vertex_v_[l2]});
+      const double umin = std::min({vertex_u_[l0], vertex_u_[l1], vertex_u_[l2]});
+      const double umax = std::max({vertex_u_[l0], vertex_u_[l1], vertex_u_[l2]});
+      if (std::max(static_cast<double>(margin), std::ceil(vmin)) > std::min(static_cast<double>(row_max), std::floor(vmax)) ||
+          std::max(static_cast<double>(margin), std::ceil(umin)) > std::min(static_cast<double>(col_max), std::floor(umax)))
+        continue;
+    }
     const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
     const Eigen::Vector3d pqc = t.heights_to_plane * z;
     // front-facing: the camera is above the triangle's plane
     if (!(cam_pos.z() - (pqc.x() * cam_pos.x() + pqc.y() * cam_pos.y() + pqc.z()) > 1e-3)) continue;
-    if (!vertex_ok_[static_cast<size_t>(t.local[0])] || !vertex_ok_[static_cast<size_t>(t.local[1])] ||
-        !vertex_ok_[static_cast<size_t>(t.local[2])])
-      continue;
     if (!PlaneGeometry::cameraPlane(ctg, pqc, &t.m)) continue;
     TriangleRasterizer::Triangle rt;
     for (int a = 0; a < 3; ++a) {
