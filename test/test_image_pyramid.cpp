@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "stereo_ground_dem/ImagePyramid.hpp"
@@ -41,4 +42,38 @@ TEST(ImagePyramid, ConvertsDepthsAndColour) {
   EXPECT_THROW(ImagePyramid::toGrayFloat(cv::Mat(4, 4, CV_64F)), std::invalid_argument);
   EXPECT_THROW(ImagePyramid::toGrayFloat(cv::Mat()), std::invalid_argument);
   EXPECT_THROW(ImagePyramid::toGrayFloat(cv::Mat(4, 4, CV_8UC2)), std::invalid_argument);
+}
+
+TEST(ImagePyramid, RowRangeStatisticsAreOpenCvsAndRemembered) {
+  // rows v hold the value v (mean of rows [10, 20) = 14.5, standard deviation sqrt(8.25))
+  cv::Mat img(40, 30, CV_8U);
+  for (int v = 0; v < img.rows; ++v) img.row(v).setTo(v);
+  const ImagePyramid pyr(img, 2);
+  double mean = 0.0, sd = 0.0;
+  pyr.rowRangeStats(10, 20, &mean, &sd);
+  EXPECT_NEAR(mean, 14.5, 1e-12);
+  EXPECT_NEAR(sd, std::sqrt(8.25), 1e-12);
+  const double first_mean = mean, first_sd = sd;
+  cv::Scalar m, s;
+  cv::meanStdDev(pyr.level(0).image.rowRange(3, 37), m, s);
+  pyr.rowRangeStats(3, 37, &mean, &sd);
+  EXPECT_EQ(mean, m[0]);
+  EXPECT_EQ(sd, s[0]);
+  // asked again, by a copy too: the same numbers (the copy shares the images and what was computed)
+  const ImagePyramid copy = pyr;
+  double mean2 = 0.0, sd2 = 0.0;
+  copy.rowRangeStats(10, 20, &mean2, &sd2);
+  EXPECT_EQ(mean2, first_mean);
+  EXPECT_EQ(sd2, first_sd);
+  // more ranges than it remembers: the oldest is computed again, with the same result
+  for (int v0 = 0; v0 < 30; ++v0) pyr.rowRangeStats(v0, v0 + 5, &mean, &sd);
+  pyr.rowRangeStats(10, 20, &mean, &sd);
+  EXPECT_EQ(mean, first_mean);
+  EXPECT_EQ(sd, first_sd);
+  pyr.rowRangeStats(25, 30, &mean, &sd);
+  EXPECT_NEAR(mean, 27.0, 1e-12);
+  EXPECT_THROW(pyr.rowRangeStats(-1, 5, &mean, &sd), std::out_of_range);
+  EXPECT_THROW(pyr.rowRangeStats(30, 41, &mean, &sd), std::out_of_range);
+  EXPECT_THROW(pyr.rowRangeStats(5, 5, &mean, &sd), std::out_of_range);
+  EXPECT_THROW(ImagePyramid().rowRangeStats(0, 1, &mean, &sd), std::out_of_range);
 }

@@ -4,6 +4,8 @@
 /// Intensities are float in 8-bit grey levels (0..255) whatever the input depth, so that every
 /// photometric parameter (robust scale, bias) has one unit.
 
+#include <memory>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -56,9 +58,23 @@ class ImagePyramid {
   /// levels, any-of 2 x 2 to the coarser ones (a pixel of a coarser level is set when any pixel it
   /// covers is). Throws std::invalid_argument when the mask does not match the level.
   std::vector<cv::Mat> maskOnEveryLevel(const cv::Mat& mask, int level) const;
+  /// Mean and standard deviation of rows [v0, v1) of level 0's image (cv::meanStdDev), remembered
+  /// per pyramid (and its copies, which share the images): the pose search asks for the same rows
+  /// of the same images several times a frame. Thread-safe. Throws std::out_of_range for rows
+  /// outside the image or an empty range.
+  void rowRangeStats(int v0, int v1, double* mean, double* stddev) const;
 
  private:
   std::vector<Level> levels_;
+  struct RowStats {
+    int v0, v1;
+    double mean, stddev;
+  };
+  struct StatsCache {
+    std::mutex mutex;
+    std::vector<RowStats> entries;  ///< the most recent last
+  };
+  std::shared_ptr<StatsCache> stats_ = std::make_shared<StatsCache>();
 };
 
 }  // namespace stereo_ground_dem

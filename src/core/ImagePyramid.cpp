@@ -63,3 +63,28 @@ std::vector<cv::Mat> ImagePyramid::maskOnEveryLevel(const cv::Mat& mask, int lev
 }
 
 }  // namespace stereo_ground_dem
+
+namespace stereo_ground_dem {
+
+void ImagePyramid::rowRangeStats(int v0, int v1, double* mean, double* stddev) const {
+  const cv::Mat& img = level(0).image;
+  if (v0 < 0 || v1 > img.rows || v0 >= v1) throw std::out_of_range("ImagePyramid::rowRangeStats: rows outside the image");
+  constexpr size_t kEntries = 16;
+  std::lock_guard<std::mutex> lock(stats_->mutex);
+  std::vector<RowStats>& e = stats_->entries;
+  for (const RowStats& r : e) {
+    if (r.v0 == v0 && r.v1 == v1) {
+      *mean = r.mean;
+      *stddev = r.stddev;
+      return;
+    }
+  }
+  cv::Scalar m, s;
+  cv::meanStdDev(img.rowRange(v0, v1), m, s);
+  if (e.size() >= kEntries) e.erase(e.begin());
+  e.push_back({v0, v1, m[0], s[0]});
+  *mean = m[0];
+  *stddev = s[0];
+}
+
+}  // namespace stereo_ground_dem

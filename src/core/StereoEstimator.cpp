@@ -87,16 +87,15 @@ PhotometricParams StereoEstimator::initialPhotometric(const ImagePyramid& left, 
     return rig_.fy * xc.y() / std::max(xc.z(), 1e-3) + rig_.cy;
   };
   const cv::Mat& l = left.level(0).image;
-  const cv::Mat& r = right.level(0).image;
   const int v0 = std::clamp(static_cast<int>(rowOf(options_.max_range_m)), 0, l.rows - 1);
   const int v1 = std::clamp(static_cast<int>(rowOf(options_.min_range_m)), v0 + 1, l.rows);
-  cv::Scalar ml, sl, mr, sr;
-  cv::meanStdDev(l.rowRange(v0, v1), ml, sl);
-  cv::meanStdDev(r.rowRange(v0, v1), mr, sr);
+  double ml, sl, mr, sr;
+  left.rowRangeStats(v0, v1, &ml, &sl);
+  right.rowRangeStats(v0, v1, &mr, &sr);
   PhotometricParams p;
-  if (sr[0] > 1.0 && sl[0] > 1.0) {
-    p.gain = std::clamp(sl[0] / sr[0], 0.25, 4.0);
-    p.bias_grey = ml[0] - p.gain * mr[0];
+  if (sr > 1.0 && sl > 1.0) {
+    p.gain = std::clamp(sl / sr, 0.25, 4.0);
+    p.bias_grey = ml - p.gain * mr;
   }
   return p;
 }
