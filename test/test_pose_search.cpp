@@ -478,6 +478,54 @@ TEST(SurfaceAligner, AStepIsSolvedWithItsOwnEvaluationsPlanes) {
   EXPECT_EQ((again.vertex_information - first.vertex_information).cwiseAbs().maxCoeff(), 0.0);
 }
 
+// A trial that no solve will linearize at (the final undamped step's, the last iteration's when
+// no final step follows) is evaluated for its cost only: the same costs, counts and residual
+// samples as a full evaluation, no normal-equation sums, and the solver refuses it. Heights and
+// motion at pyramid level 2 of frame 2 of the mapped drive (all three pairs).
+TEST(SurfaceAligner, ACostOnlyEvaluationHasTheFullOnesCostsAndNoSums) {
+  MappedDrive d;
+  const GroundGrid window = d.view->window(d.true_camera_T_ground);
+  Eigen::VectorXd heights;
+  const AlignmentProblem prob = d.heightsProblem(window, &heights);
+  SurfaceAlignerOptions ao = d.options.stereo.alignerOptions();
+  ao.estimate_motion = true;
+  SurfaceState s;
+  s.camera_T_ground = d.true_camera_T_ground;
+  s.heights = heights.array() + 0.02;
+  s.photometric.assign(prob.targets.size(), PhotometricParams());
+  aligner::AlignmentLevel level(ao, prob, s);
+  aligner::EvaluatorWorkspace ws;
+  aligner::PhotometricEvaluator evaluator(level, &ws);
+  aligner::HeightSystemSolver solver(level);
+  aligner::Evaluation full, cost_only;
+  evaluator.evaluate(s, &full);
+  evaluator.evaluate(s, &cost_only, false);
+  EXPECT_TRUE(full.sums);
+  EXPECT_FALSE(cost_only.sums);
+  ASSERT_GT(full.total(), 0.0);
+  EXPECT_EQ(cost_only.total(), full.total());
+  EXPECT_EQ(cost_only.data_cost, full.data_cost);
+  EXPECT_EQ(cost_only.smoothness_cost, full.smoothness_cost);
+  ASSERT_EQ(cost_only.pair.size(), full.pair.size());
+  for (size_t j = 0; j < full.pair.size(); ++j) {
+    EXPECT_EQ(cost_only.pair[j].cost, full.pair[j].cost);
+    EXPECT_EQ(cost_only.pair[j].valid, full.pair[j].valid);
+    EXPECT_EQ(cost_only.pair[j].outside, full.pair[j].outside);
+    EXPECT_GT(full.pair[j].pp.norm(), 0.0);
+    EXPECT_EQ(cost_only.pair[j].pp.norm(), 0.0);  // no sums were accumulated
+  }
+  EXPECT_GT(full.pair[1].mm.norm(), 0.0);
+  EXPECT_EQ(cost_only.pair[1].mm.norm(), 0.0);
+  EXPECT_EQ(cost_only.abs_residuals, full.abs_residuals);
+  EXPECT_EQ(cost_only.slot_tri, full.slot_tri);
+  EXPECT_EQ(cost_only.tri_pixels, full.tri_pixels);
+  EXPECT_EQ(cost_only.tri_excluded, full.tri_excluded);
+  EXPECT_EQ(cost_only.tri_textured, full.tri_textured);
+  AlignmentReport rep;
+  EXPECT_THROW(solver.solve(s, cost_only, &rep), std::logic_error);
+  EXPECT_TRUE(solver.solve(s, full, &rep).ok);
+}
+
 // The final undamped step is solved from the last linearization. When the last Gauss-Newton step
 // raised the cost at every halving (a stall), that linearization already failed to give a descent,
 // and the final step is not tried: no evaluations are spent on it. After accepted steps it is.

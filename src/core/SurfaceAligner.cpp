@@ -137,6 +137,11 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
     report.started_from_alternative = true;
   }
   report.initial_cost = ev->total();
+  // A trial that no solve will linearize at is evaluated for its cost only: the final step's, and
+  // the last iteration's when no final step follows (unless the motion information is wanted at
+  // the final state).
+  const bool final_step = options_.final_undamped_step && problem.estimate_heights;
+  const bool info_at_end = options_.estimate_motion && problem.want_motion_information;
   for (int it = 0; it < options_.max_iterations; ++it) {
     report.iterations = it + 1;
     t0 = Clock::now();
@@ -146,10 +151,11 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
     double alpha = 1.0;
     bool accepted = false;
     double max_dz = 0.0;
+    const bool sums = it + 1 < options_.max_iterations || final_step || info_at_end;
     for (int h = 0; h <= options_.max_step_halvings; ++h, alpha *= 0.5) {
       max_dz = level.apply(step, alpha, state, &trial);
       t0 = Clock::now();
-      evaluator.evaluate(trial, trial_ev);
+      evaluator.evaluate(trial, trial_ev, sums);
       report.evaluate_ms += ms(t0, Clock::now());
       report.evaluations++;
       if (trial_ev->total() <= ev->total() * (1.0 + 1e-9)) {
@@ -185,7 +191,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
   // would be solved from the linearization whose damped step raised the cost at every halving,
   // and it was rejected as well in 79 of 80 such passes (KITTI clips, shadows, traffic, rolling,
   // off-road), three evaluations each.
-  if (options_.final_undamped_step && problem.estimate_heights && !report.stalled) {
+  if (final_step && !report.stalled) {
     level.setDampingScale(options_.final_step_damping_scale);
     t0 = Clock::now();
     const auto step = solver.solve(state, *ev, &report);
@@ -195,7 +201,7 @@ AlignmentReport SurfaceAligner::align(const AlignmentProblem& problem, SurfaceSt
       for (int h = 0; h <= options_.max_step_halvings; ++h, alpha *= 0.5) {
         level.apply(step, alpha, state, &trial);
         t0 = Clock::now();
-        evaluator.evaluate(trial, trial_ev);
+        evaluator.evaluate(trial, trial_ev, info_at_end);
         report.evaluate_ms += ms(t0, Clock::now());
         report.evaluations++;
         report.final_step_evaluations++;

@@ -62,6 +62,10 @@ struct ThreadPart {
 };
 
 struct Evaluation {
+  /// The normal-equation pieces (tri, slot_dm_dz, the pairs' blocks) were accumulated; false for
+  /// an evaluation that only decides whether a step is taken and is never solved from (costs,
+  /// counts and residual samples only).
+  bool sums = true;
   /// Triangles that own at least one pixel get a slot; accumulators are per slot.
   std::vector<int> slot_of;   ///< triangle -> slot or -1
   std::vector<int> slot_tri;  ///< slot -> triangle

@@ -31,7 +31,9 @@ class PhotometricEvaluator {
   /// slot_dm_dz); the level's triangles hold the last evaluated state's planes for its own use.
   PhotometricEvaluator(AlignmentLevel& level, EvaluatorWorkspace* workspace) : level_(level), ws_(workspace) {}
 
-  void evaluate(const SurfaceState& s, Evaluation* ev);
+  /// sums false: costs, counts and residual samples only (Evaluation::sums), for a trial step
+  /// that no solve will linearize at.
+  void evaluate(const SurfaceState& s, Evaluation* ev, bool sums = true);
   /// Time spent in rasterization, slots and homographies so far [ms].
   double rasterMs() const { return raster_ms_; }
   /// The rasterization of the last evaluation (labels = triangle indices, inverse depth).
@@ -68,6 +70,7 @@ class PhotometricEvaluator {
   std::vector<double> vertex_u_, vertex_v_;
   std::vector<uint8_t> vertex_ok_;  ///< in front of the camera
   double raster_ms_ = 0.0;
+  bool sums_ = true;  ///< the evaluation in progress accumulates the normal-equation pieces
   /// Per band of rows of a rasterization: the triangles that won pixels in raster order, each
   /// one's first row, and (valid where stamp == generation_) its last row.
   struct BandSlots {

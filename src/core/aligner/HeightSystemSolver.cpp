@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <stdexcept>
 
 #include "stereo_ground_dem/PlaneGeometry.hpp"
 
@@ -70,6 +71,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
   const std::vector<PairContext> pc = level_.pairs(s);
   const int na = level_.activeCount();
   const int ng = level_.globalCount();
+  if (!ev.sums) throw std::logic_error("HeightSystemSolver: the evaluation has no normal-equation sums");
   // Height block on the fixed pattern: smoothness + data + prior.
   SpMat& hzz = hzz_;
   Eigen::Map<Eigen::VectorXd> values(hzz.valuePtr(), hzz.nonZeros());

@@ -179,7 +179,9 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
 }
 
 /// Rasterizes the current surface and accumulates the normal-equation pieces and the cost.
-void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
+void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev, bool sums) {
+  sums_ = sums;
+  ev->sums = sums;
   const AlignmentProblem& prob = level_.problem();
   const StereoRig& rig = level_.rig();
   std::vector<TriangleGeometry>& tris = level_.triangles();
@@ -226,7 +228,7 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
       const Eigen::Vector3d z(s.heights[t.vertex[0]], s.heights[t.vertex[1]], s.heights[t.vertex[2]]);
       const Eigen::Vector3d pqc = t.heights_to_plane * z;
       ev->slot_m[k2] = t.m;
-      ev->slot_dm_dz[k2] = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
+      if (sums) ev->slot_dm_dz[k2] = PlaneGeometry::cameraPlaneJacobian(ctg, pqc) * t.heights_to_plane;
       // H_j = K (R_j + t_j m^T) K^-1 = K R_j K^-1 + (K t_j) (K^-T m)^T
       const Eigen::Vector3d mk = kinv.transpose() * t.m;
       for (size_t j = 0; j < np; ++j) {
@@ -272,7 +274,7 @@ void PhotometricEvaluator::evaluate(const SurfaceState& s, Evaluation* ev) {
     const int slot_end = slots_before_row_[static_cast<size_t>(split[static_cast<size_t>(c) + 1])];
     int last_row = first_row - 1;
     for (int k2 = slot_begin; k2 < slot_end; ++k2) last_row = std::max(last_row, slot_last_row_[static_cast<size_t>(k2)]);
-    for (size_t j = 0; j < np; ++j) {
+    for (size_t j = 0; j < np && sums; ++j) {
       std::fill(ev->tri[j].begin() + static_cast<std::ptrdiff_t>(strides[j]) * slot_begin,
                 ev->tri[j].begin() + static_cast<std::ptrdiff_t>(strides[j]) * slot_end, 0.0);
     }
@@ -438,6 +440,7 @@ void PhotometricEvaluator::dispatchRow(const PairContext& p, size_t j, size_t ns
                   : pairRow<kWarpProjective, false>(p, j, ns, v, px, part);
       break;
   }
+  if (!sums_) return;
   if (!p.world) accumulateRuns<false, true>(p, j, y, px, runs, ev, part);
   else if (level_.strides()[j] > 0) accumulateRuns<true, true>(p, j, y, px, runs, ev, part);
   else accumulateRuns<true, false>(p, j, y, px, runs, ev, part);
