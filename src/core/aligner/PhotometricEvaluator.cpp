@@ -18,6 +18,9 @@ namespace {
 
 /// Eight floats as one vector (GCC / Clang vector extension: one AVX or two SSE registers).
 typedef float Float8 __attribute__((vector_size(32)));
+/// Four floats / ints: one SSE register (the x86-64 baseline), no AVX argument-passing ABI.
+typedef float Float4 __attribute__((vector_size(16)));
+typedef int Int4 __attribute__((vector_size(16)));
 
 inline float bilinear(const cv::Mat& img, float u, float v) {
   const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
@@ -31,17 +34,29 @@ inline float bilinear(const cv::Mat& img, float u, float v) {
 /// only decides whether a step is accepted, and both sides of that comparison use this function.
 inline float fastLog1p(float x) {
   const float y = 1.0f + x;
-  std::uint32_t bits;
-  std::memcpy(&bits, &y, sizeof(bits));
+  // bit casts without a memory round trip (std::memcpy through a local stops the vectorizer)
+  std::uint32_t bits = __builtin_bit_cast(std::uint32_t, y);
   const int exponent = static_cast<int>((bits >> 23) & 0xff) - 126;  // y = mant * 2^e, mant in [0.5, 1)
   bits = (bits & 0x007fffffu) | 0x3f000000u;
-  float mant;
-  std::memcpy(&mant, &bits, sizeof(mant));
+  const float mant = __builtin_bit_cast(float, bits);
   const float t = (mant - 0.70710678f) / (mant + 0.70710678f);
   const float t2 = t * t;
   // ln(mant) = ln(sqrt(1/2)) + 2 atanh(t), |t| < 0.172
   const float ln_m = -0.34657359f + 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
   return ln_m + 0.69314718f * static_cast<float>(exponent);
+}
+
+/// fastLog1p on four lanes, operation for operation (each lane's result equals fastLog1p's).
+inline Float4 fastLog1p4(Float4 x) {
+  const Float4 y = 1.0f + x;
+  Int4 bits = __builtin_bit_cast(Int4, y);
+  const Int4 exponent = ((bits >> 23) & 0xff) - 126;
+  bits = (bits & 0x007fffff) | 0x3f000000;
+  const Float4 mant = __builtin_bit_cast(Float4, bits);
+  const Float4 t = (mant - 0.70710678f) / (mant + 0.70710678f);
+  const Float4 t2 = t * t;
+  const Float4 ln_m = -0.34657359f + 2.0f * t * (1.0f + t2 * (0.33333333f + t2 * (0.2f + t2 * 0.14285714f)));
+  return ln_m + 0.69314718f * __builtin_convertvector(exponent, Float4);
 }
 
 }  // namespace
@@ -347,12 +362,12 @@ struct PhotometricEvaluator::RowPixels {
   std::vector<int> run_begin;  ///< first pixel of each run of one slot; n closes the last
   std::vector<float> w, we;
   // per pair, scratch: the sample position in the target, its value, and what became of it
-  std::vector<float> uj, vj, ij;
+  std::vector<float> uj, vj, ij, cost;
   std::vector<uint8_t> use;  ///< kUsed, kSkipped (no cost) or kOutside (the outside penalty)
   explicit RowPixels(int width) {
     const size_t s = static_cast<size_t>(width) + 1;
     for (auto* a : {&u, &slot, &tri, &run_begin}) a->resize(s);
-    for (auto* a : {&i0, &c0, &c1, &x, &w, &we, &uj, &vj, &ij}) a->resize(s);
+    for (auto* a : {&i0, &c0, &c1, &x, &w, &we, &uj, &vj, &ij, &cost}) a->resize(s);
     use.resize(s);
   }
 };
@@ -379,6 +394,19 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, Ev
   const float cx = static_cast<float>(rig.cx), cy = static_cast<float>(rig.cy);
   const cv::Mat& labels = raster.labels();
   RowPixels px(level_.width());
+  // Raw pointers: stores through the vectors would otherwise make the compiler reload every
+  // vector's data pointer per pixel.
+  int* const tri_pixels = ev->tri_pixels.data();
+  int* const tri_excluded = ev->tri_excluded.data();
+  int* const tri_textured = ev->tri_textured.data();
+  int* const pu = px.u.data();
+  int* const pslot = px.slot.data();
+  int* const ptri = px.tri.data();
+  int* const prun = px.run_begin.data();
+  float* const pi0 = px.i0.data();
+  float* const pc0 = px.c0.data();
+  float* const pc1 = px.c1.data();
+  float* const pxn = px.x.data();
   for (int v = v0; v < v1; ++v) {
     const int b = raster.rowBegin(v), e_col = raster.rowEnd(v);
     if (b > e_col) continue;
@@ -395,25 +423,26 @@ void PhotometricEvaluator::accumulateRows(const std::vector<PairContext>& pc, Ev
       const int ti = slot_of[tl];
       if (ti < slot_begin || ti >= slot_end) continue;  // another thread's
       if (exrow && exrow[u]) {
-        ev->tri_excluded[static_cast<size_t>(ti)]++;
+        tri_excluded[ti]++;
         continue;
       }
       const float i0 = i0row[u];
       if (i0 <= dark || i0 >= sat) continue;
-      ev->tri_pixels[static_cast<size_t>(ti)]++;
-      ev->tri_textured[static_cast<size_t>(ti)] += gurow[u] * gurow[u] + gvrow[u] * gvrow[u] >= gtex2;
+      const float gu = gurow[u], gv = gvrow[u];
+      tri_pixels[ti]++;
+      tri_textured[ti] += gu * gu + gv * gv >= gtex2;
       if (ti != last_slot) {
-        px.run_begin[static_cast<size_t>(runs++)] = n;
+        prun[runs++] = n;
         last_slot = ti;
       }
-      const size_t k = static_cast<size_t>(n++);
-      px.u[k] = u;
-      px.slot[k] = ti;
-      px.tri[k] = tl;
-      px.i0[k] = i0;
-      px.c0[k] = gurow[u] * fx;
-      px.c1[k] = gvrow[u] * fy;
-      px.x[k] = (static_cast<float>(u) - cx) / fx;
+      const int k = n++;
+      pu[k] = u;
+      pslot[k] = ti;
+      ptri[k] = tl;
+      pi0[k] = i0;
+      pc0[k] = gu * fx;
+      pc1[k] = gv * fy;
+      pxn[k] = (static_cast<float>(u) - cx) / fx;
     }
     if (n == 0) continue;
     px.n = n;
@@ -525,23 +554,55 @@ void PhotometricEvaluator::pairRow(const PairContext& p, size_t j, size_t ns, in
     ijk[k] = ij;
     if (ij <= dark || ij >= sat) use[k] = kSkipped;
   }
-  // 3. residuals, robust weights and the cost (branch-free)
+  // 3. residuals, robust weights and the cost (branch-free), four samples at a time: written
+  // with vector types because the compiler keeps the division and the logarithm of a plain loop
+  // scalar; every lane computes what the scalar tail below computes for one sample.
   const float* i0k = px.i0.data();
   float* wk = px.w.data();
   float* wek = px.we.data();
-  float cost = 0.0f;
+  float* ck = px.cost.data();
   int valid = 0, outside = 0;
-#pragma omp simd reduction(+ : cost, valid, outside)
-  for (int k = 0; k < n; ++k) {
+  int k3 = 0;
+  {
+    Int4 valid4 = {}, outside4 = {};
+    for (; k3 + 4 <= n; k3 += 4) {
+      Float4 i0v, ijv;
+      std::memcpy(&i0v, i0k + k3, sizeof(i0v));
+      std::memcpy(&ijv, ijk + k3, sizeof(ijv));
+      Int4 usev;
+      for (int l = 0; l < 4; ++l) usev[l] = use[k3 + l];
+      const Int4 used = usev == static_cast<int>(kUsed), out = usev == static_cast<int>(kOutside);  // -1 where true
+      const Float4 zero = {};
+      const Float4 e = used ? i0v - (gain * ijv + bias) : zero;
+      const Float4 w = 1.0f / (1.0f + e * e * inv_c2);
+      const Float4 r = robust ? c2r * fastLog1p4(e * e * inv_c2) : e * e;
+      const Float4 c = used ? r : (out ? zero + outside_cost : zero);
+      const Float4 wu = used ? w : zero, weu = used ? w * e : zero;
+      valid4 -= used;
+      outside4 -= out;
+      std::memcpy(ck + k3, &c, sizeof(c));
+      std::memcpy(wk + k3, &wu, sizeof(wu));
+      std::memcpy(wek + k3, &weu, sizeof(weu));
+    }
+    for (int l = 0; l < 4; ++l) {
+      valid += valid4[l];
+      outside += outside4[l];
+    }
+  }
+  for (int k = k3; k < n; ++k) {
     const bool used = use[k] == kUsed;
     const float e = used ? i0k[k] - (gain * ijk[k] + bias) : 0.0f;
-    const float w = robust ? 1.0f / (1.0f + e * e * inv_c2) : 1.0f;
-    cost += used ? rho(e) : (use[k] == kOutside ? outside_cost : 0.0f);
+    const float w = 1.0f / (1.0f + e * e * inv_c2);  // 1 exactly without the robust cost (inv_c2 = 0)
+    ck[k] = used ? rho(e) : (use[k] == kOutside ? outside_cost : 0.0f);
     valid += used;
     outside += use[k] == kOutside;
     wk[k] = used ? w : 0.0f;
     wek[k] = used ? w * e : 0.0f;
   }
+  // summed in pixel order, apart from the loop above: the cost does not depend on how the
+  // compiler splits that loop into vector lanes
+  float cost = 0.0f;
+  for (int k = 0; k < n; ++k) cost += ck[k];
   pa.cost += cost;
   pa.valid += valid;
   pa.outside += outside;
