@@ -430,26 +430,42 @@ TEST(SurfaceAligner, AnAlternativeStartIsTakenOnlyWhenClearlyCheaper) {
   EXPECT_LT(angleDeg(s.camera_T_ground, d.true_camera_T_ground), 0.045);    // measured 0.021 deg
 }
 
+// The aligner's pieces for heights and motion at pyramid level 2 of frame 2 of the mapped drive
+// (all three pairs), at the true pose with the map's heights raised by dz_m.
+struct AlignerAtTruth {
+  explicit AlignerAtTruth(double dz_m)
+      : window(d.view->window(d.true_camera_T_ground)), prob(d.heightsProblem(window, &heights)) {
+    ao = d.options.stereo.alignerOptions();
+    ao.estimate_motion = true;
+    s.camera_T_ground = d.true_camera_T_ground;
+    s.heights = heights.array() + dz_m;
+    s.photometric.assign(prob.targets.size(), PhotometricParams());
+    level = std::make_unique<aligner::AlignmentLevel>(ao, prob, s);
+    evaluator = std::make_unique<aligner::PhotometricEvaluator>(*level, &ws);
+    solver = std::make_unique<aligner::HeightSystemSolver>(*level);
+  }
+  MappedDrive d;
+  GroundGrid window;
+  Eigen::VectorXd heights;
+  AlignmentProblem prob;
+  SurfaceAlignerOptions ao;
+  SurfaceState s;
+  aligner::EvaluatorWorkspace ws;
+  std::unique_ptr<aligner::AlignmentLevel> level;
+  std::unique_ptr<aligner::PhotometricEvaluator> evaluator;
+  std::unique_ptr<aligner::HeightSystemSolver> solver;
+};
+
 // A Gauss-Newton step is solved from one evaluation: its sums and its triangles' planes and plane
 // Jacobians at the same state. SurfaceAligner evaluates trial states between a solve and the next
 // (rejected halvings, the final undamped step's trials); a step solved from the state's evaluation
 // must not change with what was evaluated since. Heights and motion at pyramid level 2 of frame
 // 2 of the mapped drive; the trial state is 20 cm higher and 0.5 deg pitched.
 TEST(SurfaceAligner, AStepIsSolvedWithItsOwnEvaluationsPlanes) {
-  MappedDrive d;
-  const GroundGrid window = d.view->window(d.true_camera_T_ground);
-  Eigen::VectorXd heights;
-  const AlignmentProblem prob = d.heightsProblem(window, &heights);
-  SurfaceAlignerOptions ao = d.options.stereo.alignerOptions();
-  ao.estimate_motion = true;
-  SurfaceState s;
-  s.camera_T_ground = d.true_camera_T_ground;
-  s.heights = heights;
-  s.photometric.assign(prob.targets.size(), PhotometricParams());
-  aligner::AlignmentLevel level(ao, prob, s);
-  aligner::EvaluatorWorkspace ws;
-  aligner::PhotometricEvaluator evaluator(level, &ws);
-  aligner::HeightSystemSolver solver(level);
+  AlignerAtTruth a(0.0);
+  const SurfaceState& s = a.s;
+  aligner::PhotometricEvaluator& evaluator = *a.evaluator;
+  aligner::HeightSystemSolver& solver = *a.solver;
   aligner::Evaluation at_state, at_trial;
   evaluator.evaluate(s, &at_state);
   AlignmentReport first, again;
@@ -483,20 +499,10 @@ TEST(SurfaceAligner, AStepIsSolvedWithItsOwnEvaluationsPlanes) {
 // samples as a full evaluation, no normal-equation sums, and the solver refuses it. Heights and
 // motion at pyramid level 2 of frame 2 of the mapped drive (all three pairs).
 TEST(SurfaceAligner, ACostOnlyEvaluationHasTheFullOnesCostsAndNoSums) {
-  MappedDrive d;
-  const GroundGrid window = d.view->window(d.true_camera_T_ground);
-  Eigen::VectorXd heights;
-  const AlignmentProblem prob = d.heightsProblem(window, &heights);
-  SurfaceAlignerOptions ao = d.options.stereo.alignerOptions();
-  ao.estimate_motion = true;
-  SurfaceState s;
-  s.camera_T_ground = d.true_camera_T_ground;
-  s.heights = heights.array() + 0.02;
-  s.photometric.assign(prob.targets.size(), PhotometricParams());
-  aligner::AlignmentLevel level(ao, prob, s);
-  aligner::EvaluatorWorkspace ws;
-  aligner::PhotometricEvaluator evaluator(level, &ws);
-  aligner::HeightSystemSolver solver(level);
+  AlignerAtTruth a(0.02);
+  const SurfaceState& s = a.s;
+  aligner::PhotometricEvaluator& evaluator = *a.evaluator;
+  aligner::HeightSystemSolver& solver = *a.solver;
   aligner::Evaluation full, cost_only;
   evaluator.evaluate(s, &full);
   evaluator.evaluate(s, &cost_only, false);
