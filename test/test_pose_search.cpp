@@ -532,6 +532,36 @@ TEST(SurfaceAligner, ACostOnlyEvaluationHasTheFullOnesCostsAndNoSums) {
   EXPECT_TRUE(solver.solve(s, full, &rep).ok);
 }
 
+// The normal equations are assembled in bands of height rows on the level's threads (and the rig
+// pair's motion sums beside them); every entry is summed in the serial order, so the step, the
+// motion information and the vertex information are the one-thread solver's to the bit. Heights
+// and motion at pyramid level 2 of frame 2 of the mapped drive (all three pairs), 2 cm off.
+TEST(SurfaceAligner, TheNormalEquationsInBandsAreTheSerialOnesToTheBit) {
+  AlignerAtTruth a(0.02);
+  ASSERT_GE(a.ao.num_threads, 2);
+  ASSERT_GE(a.level->activeCount(), 1024) << "too few rows for the bands";
+  SurfaceAlignerOptions serial_options = a.ao;
+  serial_options.num_threads = 1;
+  const aligner::AlignmentLevel serial_level(serial_options, a.prob, a.s);
+  aligner::HeightSystemSolver serial(serial_level);
+  aligner::Evaluation ev;
+  a.evaluator->evaluate(a.s, &ev);
+  for (const bool schur : {false, true}) {
+    AlignmentReport banded_report, serial_report;
+    const aligner::Step banded_step = a.solver->solve(a.s, ev, &banded_report, schur);
+    const aligner::Step serial_step = serial.solve(a.s, ev, &serial_report, schur);
+    ASSERT_TRUE(banded_step.ok && serial_step.ok);
+    ASSERT_GT(banded_step.dtheta.cwiseAbs().maxCoeff(), 1e-3);
+    EXPECT_EQ((banded_step.dtheta - serial_step.dtheta).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ((banded_step.dglobal - serial_step.dglobal).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ((banded_report.vertex_information - serial_report.vertex_information).cwiseAbs().maxCoeff(), 0.0);
+    if (schur) {
+      ASSERT_GT(banded_report.motion_information.norm(), 0.0);
+      EXPECT_EQ((banded_report.motion_information - serial_report.motion_information).cwiseAbs().maxCoeff(), 0.0);
+    }
+  }
+}
+
 // The final undamped step is solved from the last linearization. When the last Gauss-Newton step
 // raised the cost at every halving (a stall), that linearization already failed to give a descent,
 // and the final step is not tried: no evaluations are spent on it. After accepted steps it is.
