@@ -35,6 +35,9 @@ class HeightSystemSolver {
   bool augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, const Eigen::MatrixXd& d, const Eigen::VectorXd& r,
                    const Eigen::VectorXd& q, Eigen::VectorXd* x, Eigen::VectorXd* y) const;
 
+  /// Bt hzz B onto the level's basis: Eigen's products, each made in two halves of its columns on
+  /// the level's threads.
+  SpMat project(const SpMat& hzz);
   /// The level's threads (made at the first solve that shares its rows out).
   tbb::task_arena& arena();
   const AlignmentLevel& level_;

@@ -71,6 +71,48 @@ bool HeightSystemSolver::augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, c
   return std::sqrt(rc.squaredNorm() + rg.squaredNorm()) < 1e-2 * b_norm;
 }
 
+namespace {
+
+/// [left right] for two compressed column-major matrices of the same height.
+SpMat besideEachOther(const SpMat& left, const SpMat& right) {
+  SpMat out(left.rows(), left.cols() + right.cols());
+  const Eigen::Index nl = left.nonZeros(), nr = right.nonZeros();
+  out.resizeNonZeros(nl + nr);
+  std::copy(left.outerIndexPtr(), left.outerIndexPtr() + left.cols() + 1, out.outerIndexPtr());
+  for (Eigen::Index j = 1; j <= right.cols(); ++j)
+    out.outerIndexPtr()[left.cols() + j] = static_cast<int>(nl) + right.outerIndexPtr()[j];
+  std::copy(left.innerIndexPtr(), left.innerIndexPtr() + nl, out.innerIndexPtr());
+  std::copy(right.innerIndexPtr(), right.innerIndexPtr() + nr, out.innerIndexPtr() + nl);
+  std::copy(left.valuePtr(), left.valuePtr() + nl, out.valuePtr());
+  std::copy(right.valuePtr(), right.valuePtr() + nr, out.valuePtr() + nl);
+  return out;
+}
+
+}  // namespace
+
+SpMat HeightSystemSolver::project(const SpMat& hzz) {
+  const SpMat& bt = level_.basisTransposed();
+  const SpMat& b = level_.basis();
+  if (level_.threads() < 2 || b.cols() < 2 * kMinRowsPerBand) return bt * hzz * b;
+  // Eigen's sparse product makes each column of the result from the same column of its right
+  // factor alone, so the two halves of each product, made side by side, are the whole product
+  // to the bit.
+  auto halves = [&](const SpMat& lhs, const SpMat& rhs) {
+    const Eigen::Index h = rhs.cols() / 2;
+    SpMat left, right;
+    arena().execute([&] {
+      tbb::parallel_for(0, 2, [&](int part) {
+        if (part == 0)
+          left = lhs * rhs.leftCols(h);
+        else
+          right = lhs * rhs.rightCols(rhs.cols() - h);
+      });
+    });
+    return besideEachOther(left, right);
+  };
+  return halves(halves(bt, hzz), b);
+}
+
 Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report, bool need_schur) {
   const SurfaceAlignerOptions& opt = level_.options();
   const AlignmentProblem& prob = level_.problem();
@@ -293,7 +335,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
     gc = gz;
     hcg = hzg;
   } else {
-    hcc_ = level_.basisTransposed() * hzz * level_.basis();
+    hcc_ = project(hzz);
     const Eigen::VectorXd control_data = level_.basisTransposed() * data_diag;
     for (int c = 0; c < control_count; ++c)
       hcc_.coeffRef(c, c) += level_.dampingScale(control_data[c], c) * level_.updateWeights()[c];
