@@ -533,9 +533,8 @@ TEST(SurfaceAligner, ACostOnlyEvaluationHasTheFullOnesCostsAndNoSums) {
 }
 
 // The normal equations are assembled in bands of height rows on the level's threads (and the rig
-// pair's motion sums beside them), projected onto a hierarchical basis in two halves of columns,
-// and the conjugate gradients multiply by the system in halves of its rows; every entry is summed
-// in the serial order, so the step, the motion information and the
+// pair's motion sums beside them), and projected onto a hierarchical basis in two halves of
+// columns; every entry is summed in the serial order, so the step, the motion information and the
 // vertex information are the one-thread solver's to the bit. Heights and motion at pyramid level 2
 // of frame 2 of the mapped drive (all three pairs), 2 cm off; on the fine grid and on the basis of
 // mesh level 1.

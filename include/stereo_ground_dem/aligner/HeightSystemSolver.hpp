@@ -6,9 +6,7 @@
 /// it with the motion and photometric unknowns as a dense border: preconditioned conjugate
 /// gradients on the whole system, or the Schur complement on the globals with a sparse Cholesky
 /// factorization of the height block (small systems, a CG that did not converge, and when the
-/// motion's marginal information is wanted). The assembly, the projection and the conjugate
-/// gradients' products run on the level's threads (`num_threads`) and sum every entry in the
-/// one-thread order: the step does not depend on the threads. Internal to SurfaceAligner.
+/// motion's marginal information is wanted). Internal to SurfaceAligner.
 
 #include <Eigen/Core>
 #include <Eigen/SparseCholesky>
@@ -35,7 +33,7 @@ class HeightSystemSolver {
   /// Preconditioned conjugate gradients for [a b; b^T d] [x; y] = [r; q] with a sparse SPD,
   /// preconditioner blockdiag(diag(a), d). Returns false if it did not converge.
   bool augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, const Eigen::MatrixXd& d, const Eigen::VectorXd& r,
-                   const Eigen::VectorXd& q, Eigen::VectorXd* x, Eigen::VectorXd* y);
+                   const Eigen::VectorXd& q, Eigen::VectorXd* x, Eigen::VectorXd* y) const;
 
   /// Bt hzz B onto the level's basis: Eigen's products, each made in two halves of its columns on
   /// the level's threads.

@@ -26,39 +26,18 @@ tbb::task_arena& HeightSystemSolver::arena() {
 
 bool HeightSystemSolver::augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, const Eigen::MatrixXd& d,
                                      const Eigen::VectorXd& r, const Eigen::VectorXd& q, Eigen::VectorXd* x,
-                                     Eigen::VectorXd* y) {
+                                     Eigen::VectorXd* y) const {
   const SurfaceAlignerOptions& opt = level_.options();
   const Eigen::Index n = a.rows(), m = d.rows();
   const Eigen::VectorXd inv_diag = a.diagonal().cwiseMax(1e-300).cwiseInverse();
   const Eigen::LDLT<Eigen::MatrixXd> dinv(d);
   if (m > 0 && (dinv.info() != Eigen::Success || !dinv.isPositive())) return false;
-  // The product with the system on the level's threads: two halves of the height rows (the
-  // sparse block's rows gathered from a row-major copy add in the order that the column-major
-  // product scatters them, and each dense row's sum is its own) and the globals' rows beside them.
-  const bool split = m > 0 && level_.threads() > 1 && n >= 2 * kMinRowsPerBand;
-  Eigen::SparseMatrix<double, Eigen::RowMajor> a_rows;
-  if (split) a_rows = a;
   auto apply = [&](const Eigen::VectorXd& pc, const Eigen::VectorXd& pg, Eigen::VectorXd* oc, Eigen::VectorXd* og) {
-    if (!split) {
-      *oc = a * pc;
-      if (m > 0) {
-        *oc += b * pg;
-        *og = b.transpose() * pc + d * pg;
-      }
-      return;
+    *oc = a * pc;
+    if (m > 0) {
+      *oc += b * pg;
+      *og = b.transpose() * pc + d * pg;
     }
-    oc->resize(n);
-    arena().execute([&] {
-      tbb::parallel_for(0, 3, [&](int part) {
-        if (part == 2) {
-          *og = b.transpose() * pc + d * pg;
-          return;
-        }
-        const Eigen::Index lo = part == 0 ? 0 : n / 2, len = part == 0 ? n / 2 : n - n / 2;
-        oc->segment(lo, len).noalias() = a_rows.middleRows(lo, len) * pc;
-        oc->segment(lo, len).noalias() += b.middleRows(lo, len) * pg;
-      });
-    });
   };
   x->setZero(n);
   y->setZero(m);
