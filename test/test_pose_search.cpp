@@ -532,53 +532,6 @@ TEST(SurfaceAligner, ACostOnlyEvaluationHasTheFullOnesCostsAndNoSums) {
   EXPECT_TRUE(solver.solve(s, full, &rep).ok);
 }
 
-// The normal equations are assembled in bands of height rows on the level's threads (and the rig
-// pair's motion sums beside them), and projected onto a hierarchical basis in two halves of
-// columns; every entry is summed in the serial order, so the step, the motion information and the
-// vertex information are the one-thread solver's to the bit. Heights and motion at pyramid level 2
-// of frame 2 of the mapped drive (all three pairs), 2 cm off; on the fine grid and on the basis of
-// mesh level 1.
-TEST(SurfaceAligner, TheNormalEquationsInBandsAreTheSerialOnesToTheBit) {
-  AlignerAtTruth a(0.02);
-  ASSERT_GE(a.ao.num_threads, 2);
-  Eigen::SparseMatrix<double, Eigen::RowMajor> basis;
-  Eigen::VectorXd update_weight;
-  a.d.stereo->levelBasis(a.window, 1, a.s.heights, a.s.camera_T_ground, &basis, &update_weight);
-  ASSERT_GT(basis.size(), 0);
-  SurfaceAlignerOptions serial_options = a.ao;
-  serial_options.num_threads = 1;
-  for (const bool with_basis : {false, true}) {
-    SCOPED_TRACE(with_basis ? "mesh level 1" : "fine grid");
-    AlignmentProblem prob = a.prob;
-    if (with_basis) {
-      prob.basis = &basis;
-      prob.update_weight = update_weight;
-    }
-    aligner::AlignmentLevel level(a.ao, prob, a.s);
-    const aligner::AlignmentLevel serial_level(serial_options, prob, a.s);
-    ASSERT_GE(level.activeCount(), 1024) << "too few rows for the bands";
-    if (with_basis) ASSERT_GE(level.controlCount(), 512) << "too few controls for the halves";
-    aligner::EvaluatorWorkspace ws;
-    aligner::Evaluation ev;
-    aligner::PhotometricEvaluator(level, &ws).evaluate(a.s, &ev);
-    aligner::HeightSystemSolver banded(level), serial(serial_level);
-    for (const bool schur : {false, true}) {
-      AlignmentReport banded_report, serial_report;
-      const aligner::Step banded_step = banded.solve(a.s, ev, &banded_report, schur);
-      const aligner::Step serial_step = serial.solve(a.s, ev, &serial_report, schur);
-      ASSERT_TRUE(banded_step.ok && serial_step.ok);
-      ASSERT_GT(banded_step.dtheta.cwiseAbs().maxCoeff(), 1e-3);
-      EXPECT_EQ((banded_step.dtheta - serial_step.dtheta).cwiseAbs().maxCoeff(), 0.0);
-      EXPECT_EQ((banded_step.dglobal - serial_step.dglobal).cwiseAbs().maxCoeff(), 0.0);
-      EXPECT_EQ((banded_report.vertex_information - serial_report.vertex_information).cwiseAbs().maxCoeff(), 0.0);
-      if (schur) {
-        ASSERT_GT(banded_report.motion_information.norm(), 0.0);
-        EXPECT_EQ((banded_report.motion_information - serial_report.motion_information).cwiseAbs().maxCoeff(), 0.0);
-      }
-    }
-  }
-}
-
 // The final undamped step is solved from the last linearization. When the last Gauss-Newton step
 // raised the cost at every halving (a stall), that linearization already failed to give a descent,
 // and the final step is not tried: no evaluations are spent on it. After accepted steps it is.

@@ -67,7 +67,7 @@ struct SurfaceAlignerOptions {
   /// ... for the controls whose data information is at least this share of their update weight
   /// (the far edges, seen by a handful of pixels, keep their damping).
   double undamped_min_information_ratio = 1.0;
-  int num_threads = 2;                     ///< threads for the pixel loop and the normal equations
+  int num_threads = 2;                     ///< threads for the pixel loop
   /// The height block of the normal equations is solved by conjugate gradients with a Jacobi
   /// preconditioner (measured on a KITTI frame, 4580 heights: 0.4 ms to 1e-4 relative error
   /// against 23 ms for Eigen's sparse LDLT), falling back to the sparse Cholesky factorization

@@ -10,8 +10,6 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCholesky>
-#include <memory>
-#include <tbb/task_arena.h>
 
 #include "stereo_ground_dem/aligner/AlignmentLevel.hpp"
 #include "stereo_ground_dem/aligner/Evaluation.hpp"
@@ -35,13 +33,7 @@ class HeightSystemSolver {
   bool augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, const Eigen::MatrixXd& d, const Eigen::VectorXd& r,
                    const Eigen::VectorXd& q, Eigen::VectorXd* x, Eigen::VectorXd* y) const;
 
-  /// Bt hzz B onto the level's basis: Eigen's products, each made in two halves of its columns on
-  /// the level's threads.
-  SpMat project(const SpMat& hzz);
-  /// The level's threads (made at the first solve that shares its rows out).
-  tbb::task_arena& arena();
   const AlignmentLevel& level_;
-  std::unique_ptr<tbb::task_arena> arena_;
   SpMat hzz_, hcc_;  ///< the height block on the fixed pattern; projected onto the basis
   Eigen::SimplicialLDLT<SpMat> chol_;
   bool analyzed_ = false;

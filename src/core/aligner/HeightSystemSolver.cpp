@@ -1,9 +1,7 @@
 #include "stereo_ground_dem/aligner/HeightSystemSolver.hpp"
 
 #include <Eigen/Cholesky>
-#include <algorithm>
 #include <cmath>
-#include <tbb/parallel_for.h>
 #include <stdexcept>
 
 #include "stereo_ground_dem/PlaneGeometry.hpp"
@@ -14,15 +12,7 @@ namespace aligner {
 namespace {
 using Matrix32d = Eigen::Matrix<double, 3, 2>;
 using Matrix36d = Eigen::Matrix<double, 3, 6>;
-// The normal equations are assembled in bands of height rows when there are enough rows to share.
-constexpr int kMinRowsPerBand = 256;
-constexpr int kMaxBands = 4;
 }  // namespace
-
-tbb::task_arena& HeightSystemSolver::arena() {
-  if (!arena_) arena_ = std::make_unique<tbb::task_arena>(level_.threads());
-  return *arena_;
-}
 
 bool HeightSystemSolver::augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, const Eigen::MatrixXd& d,
                                      const Eigen::VectorXd& r, const Eigen::VectorXd& q, Eigen::VectorXd* x,
@@ -71,48 +61,6 @@ bool HeightSystemSolver::augmentedCg(const SpMat& a, const Eigen::MatrixXd& b, c
   return std::sqrt(rc.squaredNorm() + rg.squaredNorm()) < 1e-2 * b_norm;
 }
 
-namespace {
-
-/// [left right] for two compressed column-major matrices of the same height.
-SpMat besideEachOther(const SpMat& left, const SpMat& right) {
-  SpMat out(left.rows(), left.cols() + right.cols());
-  const Eigen::Index nl = left.nonZeros(), nr = right.nonZeros();
-  out.resizeNonZeros(nl + nr);
-  std::copy(left.outerIndexPtr(), left.outerIndexPtr() + left.cols() + 1, out.outerIndexPtr());
-  for (Eigen::Index j = 1; j <= right.cols(); ++j)
-    out.outerIndexPtr()[left.cols() + j] = static_cast<int>(nl) + right.outerIndexPtr()[j];
-  std::copy(left.innerIndexPtr(), left.innerIndexPtr() + nl, out.innerIndexPtr());
-  std::copy(right.innerIndexPtr(), right.innerIndexPtr() + nr, out.innerIndexPtr() + nl);
-  std::copy(left.valuePtr(), left.valuePtr() + nl, out.valuePtr());
-  std::copy(right.valuePtr(), right.valuePtr() + nr, out.valuePtr() + nl);
-  return out;
-}
-
-}  // namespace
-
-SpMat HeightSystemSolver::project(const SpMat& hzz) {
-  const SpMat& bt = level_.basisTransposed();
-  const SpMat& b = level_.basis();
-  if (level_.threads() < 2 || b.cols() < 2 * kMinRowsPerBand) return bt * hzz * b;
-  // Eigen's sparse product makes each column of the result from the same column of its right
-  // factor alone, so the two halves of each product, made side by side, are the whole product
-  // to the bit.
-  auto halves = [&](const SpMat& lhs, const SpMat& rhs) {
-    const Eigen::Index h = rhs.cols() / 2;
-    SpMat left, right;
-    arena().execute([&] {
-      tbb::parallel_for(0, 2, [&](int part) {
-        if (part == 0)
-          left = lhs * rhs.leftCols(h);
-        else
-          right = lhs * rhs.rightCols(rhs.cols() - h);
-      });
-    });
-    return besideEachOther(left, right);
-  };
-  return halves(halves(bt, hzz), b);
-}
-
 Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, AlignmentReport* report, bool need_schur) {
   const SurfaceAlignerOptions& opt = level_.options();
   const AlignmentProblem& prob = level_.problem();
@@ -137,140 +85,86 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
   Eigen::VectorXd gg = Eigen::VectorXd::Zero(ng);
   const double ks = level_.dataScale();
   static constexpr double kCoef[3] = {1.0, -2.0, 1.0};
-  const size_t np = pc.size();
-  // A triangle's sums in pair j and its plane's Jacobian (delta = a * dz) at the evaluation's state
-  // (not the level's last evaluation).
-  struct TriangleTerms {
-    Eigen::Matrix3d dd, a;
-    Eigen::Vector3d de;
-    Matrix32d dp;
-    double scale;
-  };
-  auto terms = [&](size_t j, size_t k2, TriangleTerms* tt) {
-    const double* acc = sum.tri[j].data() + k2 * static_cast<size_t>(level_.strides()[j]);
-    tt->dd << acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5];
-    tt->de = Eigen::Vector3d(acc[6], acc[7], acc[8]);
-    tt->dp << acc[9], acc[10], acc[11], acc[12], acc[13], acc[14];
-    tt->scale = PlaneGeometry::deltaScale(ev.slot_m[k2], pc[j].t_prime);
-    tt->a = tt->scale * ev.slot_dm_dz[k2];
-  };
-  // The height rows [lo, hi): smoothness, data and the height-global blocks. Every entry belongs
-  // to one row and is summed in the same order whichever rows a task takes (stencils, then the
-  // pairs, then the slots), so the bands may run concurrently and give the serial sums to the bit.
-  auto heightRows = [&](int lo, int hi) {
-    auto mine = [lo, hi](int r) { return r >= lo && r < hi; };
-    for (size_t k = 0; k < level_.stencils().size(); ++k) {
-      const Stencil& st = level_.stencils()[k];
-      const double om = ev.smooth_weight[k];
-      const double ww = om * st.w * st.w;
-      for (int a = 0; a < 3; ++a) {
-        if (!mine(st.v[a])) continue;
-        gz[st.v[a]] += om * ev.smooth_residual[k] * st.w * kCoef[a];
-        for (int b = 0; b < 3; ++b) values[st.idx[a * 3 + b]] += ww * kCoef[a] * kCoef[b];
-      }
+  for (size_t k = 0; k < level_.stencils().size(); ++k) {
+    const Stencil& st = level_.stencils()[k];
+    const double om = ev.smooth_weight[k];
+    const double ww = om * st.w * st.w;
+    for (int a = 0; a < 3; ++a) {
+      gz[st.v[a]] += om * ev.smooth_residual[k] * st.w * kCoef[a];
+      for (int b = 0; b < 3; ++b) values[st.idx[a * 3 + b]] += ww * kCoef[a] * kCoef[b];
     }
-    if (!prob.estimate_heights) return;
-    for (size_t j = 0; j < np; ++j) {
-      const PairContext& p = pc[j];
-      const bool rig = prob.targets[j].rig_fixed;
-      const int pi = p.photo_index;
-      if (level_.strides()[j] == 0) continue;
-      TriangleTerms tt;
-      for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
-        const TriangleGeometry& t = tris[static_cast<size_t>(ev.slot_tri[k2])];
-        if (sum.tri_pixels[k2] == 0) continue;
-        if (!mine(t.local[0]) && !mine(t.local[1]) && !mine(t.local[2])) continue;
-        terms(j, k2, &tt);
-        const Eigen::Matrix3d& a = tt.a;
-        const Eigen::Matrix3d atd = ks * a.transpose() * tt.dd;
+  }
+  for (size_t j = 0; j < pc.size(); ++j) {
+    const PairContext& p = pc[j];
+    const bool rig = prob.targets[j].rig_fixed;
+    const int pi = p.photo_index;
+    const int stride = level_.strides()[j];
+    // a rig pair's motion blocks, summed over its slots (the upper triangle of the 6x6)
+    Matrix6d rig_mm = Matrix6d::Zero();
+    Vector6d rig_me = Vector6d::Zero();
+    Matrix62d rig_mp = Matrix62d::Zero();
+    // per triangle: what the heights need, and a rig pair's motion (nothing else when the heights
+    // are fixed: a world-fixed pair then has no per-triangle sums)
+    const size_t slots = stride > 0 && (prob.estimate_heights || (rig && opt.estimate_motion)) ? ev.slot_tri.size() : 0;
+    for (size_t k2 = 0; k2 < slots; ++k2) {
+      const TriangleGeometry& t = tris[static_cast<size_t>(ev.slot_tri[k2])];
+      if (sum.tri_pixels[k2] == 0) continue;
+      const double* acc = sum.tri[j].data() + k2 * static_cast<size_t>(stride);
+      Eigen::Matrix3d dd;
+      dd << acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5];
+      const Eigen::Vector3d de(acc[6], acc[7], acc[8]);
+      Matrix32d dp;
+      dp << acc[9], acc[10], acc[11], acc[12], acc[13], acc[14];
+      // the plane and its Jacobian at the evaluation's state (not the level's last evaluation)
+      const Eigen::Vector3d& m = ev.slot_m[k2];
+      const double scale = PlaneGeometry::deltaScale(m, p.t_prime);
+      const Eigen::Matrix3d a = scale * ev.slot_dm_dz[k2];  // delta = a * dz
+      if (prob.estimate_heights) {
+        const Eigen::Matrix3d atd = ks * a.transpose() * dd;
         const Eigen::Matrix3d hz = atd * a;
-        const Eigen::Vector3d g3 = ks * a.transpose() * tt.de;
+        const Eigen::Vector3d g3 = ks * a.transpose() * de;
         for (int r = 0; r < 3; ++r) {
-          const int row = t.local[static_cast<size_t>(r)];
-          if (!mine(row)) continue;
-          gz[row] += g3[r];
-          data_diag[row] += hz(r, r);
+          gz[t.local[static_cast<size_t>(r)]] += g3[r];
+          data_diag[t.local[static_cast<size_t>(r)]] += hz(r, r);
           for (int c = 0; c < 3; ++c) values[t.value_index[static_cast<size_t>(r * 3 + c)]] += hz(r, c);
         }
         if (pi >= 0) {
-          const Matrix32d hzp = ks * a.transpose() * tt.dp;
-          for (int r = 0; r < 3; ++r)
-            if (mine(t.local[static_cast<size_t>(r)])) hzg_rows.block<1, 2>(t.local[static_cast<size_t>(r)], pi) += hzp.row(r);
+          const Matrix32d hzp = ks * a.transpose() * dp;
+          for (int r = 0; r < 3; ++r) hzg_rows.block<1, 2>(t.local[static_cast<size_t>(r)], pi) += hzp.row(r);
         }
-        if (opt.estimate_motion) {
-          Matrix36d hzm;
-          if (rig) {
-            // bm = d delta / d xi = scale [-m m^T, -[m]_x] (PlaneGeometry::cameraPlaneMotionJacobian)
-            const Matrix36d bm = tt.scale * PlaneGeometry::cameraPlaneMotionJacobian(ev.slot_m[k2]);
-            const Matrix36d dbm = ks * (tt.dd * bm);
-            hzm.noalias() = a.transpose() * dbm;
-          } else {
-            const double* acc = sum.tri[j].data() + k2 * static_cast<size_t>(level_.strides()[j]);
-            const Eigen::Map<const Eigen::Matrix<double, 3, 6, Eigen::RowMajor>> dm(acc + 15);
-            hzm = ks * a.transpose() * dm;
+      }
+      if (opt.estimate_motion) {
+        Matrix36d hzm;
+        if (rig) {
+          // bm = d delta / d xi = scale [-m m^T, -[m]_x] (PlaneGeometry::cameraPlaneMotionJacobian)
+          const Matrix36d bm = scale * PlaneGeometry::cameraPlaneMotionJacobian(m);
+          const Matrix36d dbm = ks * (dd * bm);  // ks dd bm, shared by three blocks
+          if (prob.estimate_heights) hzm.noalias() = a.transpose() * dbm;
+          for (int r = 0; r < 6; ++r) {
+            for (int q = r; q < 6; ++q)
+              rig_mm(r, q) += bm(0, r) * dbm(0, q) + bm(1, r) * dbm(1, q) + bm(2, r) * dbm(2, q);
+            rig_me[r] += ks * (bm(0, r) * de[0] + bm(1, r) * de[1] + bm(2, r) * de[2]);
+            if (pi >= 0) {
+              rig_mp(r, 0) += ks * (bm(0, r) * dp(0, 0) + bm(1, r) * dp(1, 0) + bm(2, r) * dp(2, 0));
+              rig_mp(r, 1) += ks * (bm(0, r) * dp(0, 1) + bm(1, r) * dp(1, 1) + bm(2, r) * dp(2, 1));
+            }
           }
-          for (int r = 0; r < 3; ++r)
-            if (mine(t.local[static_cast<size_t>(r)])) hzg_rows.block<1, 6>(t.local[static_cast<size_t>(r)], 0) += hzm.row(r);
+        } else if (prob.estimate_heights) {
+          const Eigen::Map<const Eigen::Matrix<double, 3, 6, Eigen::RowMajor>> dm(acc + 15);
+          hzm = ks * a.transpose() * dm;
+        }
+        if (prob.estimate_heights) {
+          for (int r = 0; r < 3; ++r) hzg_rows.block<1, 6>(t.local[static_cast<size_t>(r)], 0) += hzm.row(r);
         }
       }
     }
-  };
-  // A rig pair's motion blocks, summed over its slots in slot order (the upper triangle of the 6x6).
-  std::vector<Matrix6d> rig_mm(np, Matrix6d::Zero());
-  std::vector<Vector6d> rig_me(np, Vector6d::Zero());
-  std::vector<Matrix62d> rig_mp(np, Matrix62d::Zero());
-  auto rigSums = [&]() {
-    if (!opt.estimate_motion) return;
-    for (size_t j = 0; j < np; ++j) {
-      if (!prob.targets[j].rig_fixed || level_.strides()[j] == 0) continue;
-      const int pi = pc[j].photo_index;
-      Matrix6d& mm = rig_mm[j];
-      Vector6d& me = rig_me[j];
-      Matrix62d& mp = rig_mp[j];
-      TriangleTerms tt;
-      for (size_t k2 = 0; k2 < ev.slot_tri.size(); ++k2) {
-        if (sum.tri_pixels[k2] == 0) continue;
-        terms(j, k2, &tt);
-        const Matrix36d bm = tt.scale * PlaneGeometry::cameraPlaneMotionJacobian(ev.slot_m[k2]);
-        const Matrix36d dbm = ks * (tt.dd * bm);  // ks dd bm, shared by three blocks
-        const Eigen::Vector3d& de = tt.de;
-        const Matrix32d& dp = tt.dp;
-        for (int r = 0; r < 6; ++r) {
-          for (int q = r; q < 6; ++q) mm(r, q) += bm(0, r) * dbm(0, q) + bm(1, r) * dbm(1, q) + bm(2, r) * dbm(2, q);
-          me[r] += ks * (bm(0, r) * de[0] + bm(1, r) * de[1] + bm(2, r) * de[2]);
-          if (pi >= 0) {
-            mp(r, 0) += ks * (bm(0, r) * dp(0, 0) + bm(1, r) * dp(1, 0) + bm(2, r) * dp(2, 0));
-            mp(r, 1) += ks * (bm(0, r) * dp(0, 1) + bm(1, r) * dp(1, 1) + bm(2, r) * dp(2, 1));
-          }
-        }
+    if (rig && opt.estimate_motion) {
+      hgg.topLeftCorner<6, 6>() += rig_mm.selfadjointView<Eigen::Upper>().toDenseMatrix();
+      gg.head<6>() += rig_me;
+      if (pi >= 0) {
+        hgg.block<6, 2>(0, pi) += rig_mp;
+        hgg.block<2, 6>(pi, 0) += rig_mp.transpose();
       }
-    }
-  };
-  // Bands of height rows and the rig sums as tasks (the active vertices are numbered row by row
-  // of the grid, so a band's triangles seldom reach into the next band).
-  const int bands = level_.threads() > 1 && prob.estimate_heights && na >= kMinRowsPerBand * 2
-                        ? std::min(kMaxBands, na / kMinRowsPerBand) : 1;
-  if (bands > 1) {
-    arena().execute([&] {
-      tbb::parallel_for(0, bands + 1, [&](int b) {
-        if (b == bands)
-          rigSums();
-        else
-          heightRows(static_cast<int>(static_cast<long>(na) * b / bands), static_cast<int>(static_cast<long>(na) * (b + 1) / bands));
-      });
-    });
-  } else {
-    heightRows(0, na);
-    rigSums();
-  }
-  for (size_t j = 0; j < np; ++j) {
-    if (!prob.targets[j].rig_fixed || !opt.estimate_motion) continue;
-    const int pi = pc[j].photo_index;
-    hgg.topLeftCorner<6, 6>() += rig_mm[j].selfadjointView<Eigen::Upper>().toDenseMatrix();
-    gg.head<6>() += rig_me[j];
-    if (pi >= 0) {
-      hgg.block<6, 2>(0, pi) += rig_mp[j];
-      hgg.block<2, 6>(pi, 0) += rig_mp[j].transpose();
     }
   }
   const Eigen::MatrixXd hzg = hzg_rows;
@@ -335,7 +229,7 @@ Step HeightSystemSolver::solve(const SurfaceState& s, const Evaluation& ev, Alig
     gc = gz;
     hcg = hzg;
   } else {
-    hcc_ = project(hzz);
+    hcc_ = level_.basisTransposed() * hzz * level_.basis();
     const Eigen::VectorXd control_data = level_.basisTransposed() * data_diag;
     for (int c = 0; c < control_count; ++c)
       hcc_.coeffRef(c, c) += level_.dampingScale(control_data[c], c) * level_.updateWeights()[c];
