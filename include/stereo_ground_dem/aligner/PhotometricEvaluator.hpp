@@ -23,6 +23,7 @@ struct EvaluatorWorkspace {
   TriangleRasterizer raster;
   std::vector<TriangleRasterizer::Triangle> projected;  ///< the front-facing triangles of a rasterization
   std::vector<std::array<float, 9>> homographies;  ///< [pair * slots + slot]
+  std::vector<double> row_work_change, row_work_setups;  ///< where the two drawing bands split
 };
 
 class PhotometricEvaluator {
