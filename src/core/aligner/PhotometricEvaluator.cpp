@@ -83,7 +83,10 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
   // (KITTI 06, perf): the far ground's many small triangles are mostly set-up and rows, and
   // balancing by area alone gave the upper band 2.7x the lower one's drawing.
   constexpr double kSetupPx = 12.0, kRowPx = 5.0;
-  const bool balance = level_.threads() > 1;
+  // Two bands only with a second thread and enough triangles to share (checked again below on the
+  // triangles drawn); the work is counted only then.
+  constexpr size_t kMinTrianglesToSplit = 64;
+  const bool balance = level_.threads() > 1 && tris.size() > kMinTrianglesToSplit;
   std::vector<double>& rate_change = ws_->row_work_change;  // the work per row from this row on
   std::vector<double>& setups = ws_->row_work_setups;       // the set-ups of the triangles starting here
   double total_work = 0.0;
@@ -136,7 +139,6 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
   // triangles are drawn in the same order as by one thread, so every pixel gets the same winner
   // (the split moves only the work, never a result). Each band then lists the triangles that won
   // pixels in it, in raster order, with their first and last rows.
-  const int threads = level_.threads();
   const int height = level_.height();
   const cv::Mat& labels = raster.labels();
   ++generation_;
@@ -166,7 +168,7 @@ void PhotometricEvaluator::rasterize(const SurfaceState& s) {
     }
   };
   int split = height;  // band 0: rows [0, split), band 1: [split, height)
-  if (threads > 1 && projected.size() > 64) {
+  if (balance && projected.size() > kMinTrianglesToSplit) {
     split = 0;
     double rate = 0.0;  // the work per row: the running sum of the changes
     for (double acc = 0.0; split < height && acc < 0.5 * total_work; ++split) {
