@@ -169,8 +169,8 @@ std::vector<double> absolute(std::vector<double> e) {
 struct DetectorInput {
   Pair c = renderPair(sim::SceneKind::kFlatRoad, true);
   StereoEstimator est{c.rig, StereoEstimatorOptions()};
-  StereoResult r = est.estimate(c.pair.left.image, c.pair.right.image);
   ImagePyramid left = est.makePyramid(c.pair.left.image), right = est.makePyramid(c.pair.right.image);
+  StereoResult r = est.estimate(left, right);  // a sequence's start-up: its frames' pyramids
   cv::Mat rho = est.surfaceInverseDepth(left, r.grid, Eigen::VectorXd::Zero(r.grid.vertexCount()),
                                         r.ground_T_camera.inverse(), ObstacleDetectorOptions().level);
   ObstacleMask detect(const ObstacleDetectorOptions& o) const {
@@ -214,9 +214,9 @@ TEST(Obstacles, ObstacleAtTheLeftLimitContinuesToTheBorder) {
   const Eigen::Isometry3d ground_T_left = sim::SequenceGenerator::cameraPose(scene, sim::SequenceOptions(), 0.0, 0.0, 0.0);
   const sim::RenderedPair pair = renderer.renderPair(ground_T_left, {1.2, 10.0}, {1.0, 0.0}, 0.0, 3);
   const StereoEstimator est(rig, StereoEstimatorOptions());
-  const StereoResult r = est.estimate(pair.left.image, pair.right.image);
-  ASSERT_TRUE(r.ok) << r.message;
   const ImagePyramid left = est.makePyramid(pair.left.image), right = est.makePyramid(pair.right.image);
+  const StereoResult r = est.estimate(left, right);  // a sequence's start-up: its frames' pyramids
+  ASSERT_TRUE(r.ok) << r.message;
   ObstacleDetectorOptions o;
   // the ground as the map knows it (level), as DetectorInput has it
   const cv::Mat rho = est.surfaceInverseDepth(left, r.grid, Eigen::VectorXd::Zero(r.grid.vertexCount()),

@@ -265,10 +265,12 @@ TEST_P(RealClip, MappedWithinItsMeasuredFigures) {
 // Stereo mode (one pair, as at start-up and relocalization) on the real clip's pairs, frames 0, 10,
 // ..., 70, against its LiDAR ground reference within 6 m of the path (the road and its edges),
 // 5-40 m deep, beside OpenCV SGBM's three modes (scripts/stereo_vs_lidar.py; docs/results.md,
-// "Stereo mode against the LiDAR and SGBM's own modes"). Measured: ours coverage 78.7 %, median
-// 0.572 px, D1 1.85 % (SGBM 3-way 94.9 %, 0.631 px, 4.99 %: moving cars in front of the reference
-// ground); ours against SGBM 3-way D1 1.17 %, within SGBM's modes against each other (0.56-1.37 %),
-// issue 10's yardstick for the stereo mode. Limits: a 2x regression of ours fails.
+// "Stereo mode against the LiDAR and SGBM's own modes"). Measured: ours coverage 81.0 %, median
+// 0.511 px, D1 0.60 % (SGBM 3-way 94.9 %, 0.631 px, 4.99 %: moving cars in front of the reference
+// ground); ours against SGBM 3-way D1 0.53 %, within SGBM's modes against each other (0.56-1.37 %),
+// issue 10's yardstick for the stereo mode. (With the sequences' 0.8 px blur, before
+// stereo_presmooth_sigma_px: 78.7 %, 0.572 px, D1 1.85 %; against SGBM 1.17 %.) Limits: a 2x
+// regression of ours fails.
 TEST(StereoMode, GroundAgreesWithTheLidarAndWithSgbmAsSgbmWithItself) {
   const std::string seq = kShared + "/data/kitti_raw_0926_d0013_f000-079";
   if (!fs::exists(seq + "/gt/lidar_ground.npz")) GTEST_SKIP() << seq << " is not there (../shared beside the repository)";
@@ -285,9 +287,9 @@ TEST(StereoMode, GroundAgreesWithTheLidarAndWithSgbmAsSgbmWithItself) {
   ASSERT_NE(all, std::string::npos) << t;
   const size_t ours = t.find("\"ours\": {", all);
   ASSERT_NE(ours, std::string::npos) << t;
-  EXPECT_GT(numberAfter(t, "\"coverage_pct\"", ours), 70.0) << t;
-  EXPECT_LT(numberAfter(t, "\"median_px\"", ours), 0.75) << t;
-  EXPECT_LT(numberAfter(t, "\"d1_pct\"", ours), 3.0) << t;
+  EXPECT_GT(numberAfter(t, "\"coverage_pct\"", ours), 72.0) << t;
+  EXPECT_LT(numberAfter(t, "\"median_px\"", ours), 0.70) << t;
+  EXPECT_LT(numberAfter(t, "\"d1_pct\"", ours), 1.0) << t;
   double sgbm_self = 0.0;
   for (const char* pair : {"\"sgbm_3way~sgbm_5dir\"", "\"sgbm_3way~sgbm_hh\"", "\"sgbm_5dir~sgbm_hh\""}) {
     const size_t at = t.find(pair, all);
@@ -298,7 +300,7 @@ TEST(StereoMode, GroundAgreesWithTheLidarAndWithSgbmAsSgbmWithItself) {
   const size_t vs = t.find("\"ours~sgbm_3way\"", all);
   ASSERT_NE(vs, std::string::npos) << t;
   EXPECT_LE(numberAfter(t, "\"d1_pct\"", vs), sgbm_self) << t;
-  EXPECT_LT(numberAfter(t, "\"median_px\"", vs), 0.45) << t;  // measured 0.293 (SGBM's modes 0.19-0.44)
+  EXPECT_LT(numberAfter(t, "\"median_px\"", vs), 0.40) << t;  // measured 0.262 (SGBM's modes 0.19-0.44)
   if (!::testing::Test::HasFailure()) fs::remove_all(dir);
 }
 

@@ -81,6 +81,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("robust_scale_grey", &a.robust_scale_grey, "Cauchy scale of the photometric residual, <= 0 least squares [grey]", true);
   d("image_noise_std_grey", &a.image_noise_std_grey, "photometric noise sigma, sets the chi^2 scale [grey]", true);
   d("presmooth_sigma_px", &s.presmooth_sigma_px, "Gaussian blur of full-resolution images [px]");
+  d("stereo_presmooth_sigma_px", &s.stereo_presmooth_sigma_px,
+    "... of one-pair runs (dem_offline --left --right) [px]");
   i("iterations_per_level", &e.iterations_per_level, "Gauss-Newton iterations per coarse level, incremental mode", true);
   i("fine_iterations", &e.fine_iterations, "Gauss-Newton iterations at pyramid levels 0 and 1, incremental mode", true);
   i("stereo_fine_iterations", &e.stereo_fine_iterations,

@@ -37,6 +37,9 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
     return bad("update_weight must be >= 0 and update_reference_depth_m > 0");
   }
   if (iterations_per_level < 1) return bad("iterations_per_level must be >= 1");
+  if (!(presmooth_sigma_px >= 0.0) || !(stereo_presmooth_sigma_px >= 0.0) || !(presmooth_sigma_px < 100.0) ||
+      !(stereo_presmooth_sigma_px < 100.0))
+    return bad("presmooth_sigma_px and stereo_presmooth_sigma_px must be in [0, 100)");
   if (!(hidden_pixel_ratio >= 0.0) || min_ground_pixels < 1) return bad("need hidden_pixel_ratio >= 0 and min_ground_pixels >= 1");
   if (!(min_incidence_ratio >= 0.0) || !(min_incidence_ratio < 1.0)) return bad("min_incidence_ratio must be in [0, 1)");
   std::string w;
@@ -202,7 +205,7 @@ StereoResult StereoEstimator::estimate(const cv::Mat& left, const cv::Mat& right
     r.message = os.str();
     return r;
   }
-  return estimate(makePyramid(left), makePyramid(right));
+  return estimate(makeStereoPyramid(left), makeStereoPyramid(right));
 }
 
 int StereoEstimator::pyramidLevels() const {
@@ -211,6 +214,10 @@ int StereoEstimator::pyramidLevels() const {
 
 ImagePyramid StereoEstimator::makePyramid(const cv::Mat& image, ImagePyramid::ColorOrder order) const {
   return ImagePyramid(image, pyramidLevels(), order, options_.presmooth_sigma_px);
+}
+
+ImagePyramid StereoEstimator::makeStereoPyramid(const cv::Mat& image, ImagePyramid::ColorOrder order) const {
+  return ImagePyramid(image, pyramidLevels(), order, options_.stereo_presmooth_sigma_px);
 }
 
 void StereoEstimator::levelBasis(const GroundGrid& fine, int level, const Eigen::VectorXd& heights,

@@ -261,7 +261,7 @@ int runPair(const Args& a) {
   checkOutputDirectory(a.out);
   const StereoEstimator est(rig, o.estimator.stereo);
   const auto t0 = std::chrono::steady_clock::now();
-  const ImagePyramid pl = est.makePyramid(grey_left), pr = est.makePyramid(grey_right);
+  const ImagePyramid pl = est.makeStereoPyramid(grey_left), pr = est.makeStereoPyramid(grey_right);
   const StereoResult r = est.estimate(pl, pr);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (!r.ok) throw std::runtime_error("estimation failed: " + r.message);
