@@ -65,6 +65,13 @@ def sgbm(left, right, mode):
     return d
 
 
+def ground_cells(ref, max_lateral):
+    """Rows and columns of the LiDAR ground cells within max_lateral [m] of the camera path."""
+    r, c = np.nonzero(np.isfinite(ref["heights"]))
+    near = path_distance(ref, r, c) <= max_lateral
+    return r[near], c[near]
+
+
 def path_distance(ref, r, c):
     """Horizontal distance [m] of cells (r, c) to the camera path (world_T_camera, 0.1 m steps)."""
     from scipy.spatial import cKDTree
@@ -77,17 +84,15 @@ def path_distance(ref, r, c):
     return cKDTree(np.array(pts)).query(np.stack([ox + c * res, oy + r * res], axis=1))[0]
 
 
-def reference_disparity(ref, k, shape, calib, min_depth, max_depth, max_lateral):
-    """The LiDAR ground's disparity image of frame k (0 where there is none)."""
+def reference_disparity(ref, cells, k, shape, calib, min_depth, max_depth):
+    """The LiDAR ground's disparity image of frame k from the ground cells (r, c) (0 where there is none)."""
     fx, cx, fy, cy, baseline = calib
     h, w = shape
     heights, obstacle = ref["heights"], ref["obstacle"].astype(bool)
     ox, oy, res = float(ref["origin"][0]), float(ref["origin"][1]), float(ref["resolution"])
     world_T_cam = ref["world_T_camera_lidar"][k]
     cam_T_world = np.linalg.inv(world_T_cam)
-    r, c = np.nonzero(np.isfinite(heights))
-    near = path_distance(ref, r, c) <= max_lateral
-    r, c = r[near], c[near]
+    r, c = cells
     pw = np.stack([ox + c * res, oy + r * res, heights[r, c].astype(np.float64), np.ones(len(r))])
     pc = cam_T_world @ pw
     z = pc[2]
@@ -154,6 +159,7 @@ def main():
     calib_path = os.path.join(a.ref, "calib.txt")
     calib = read_calib(calib_path)
     frames = [int(f) for f in a.frames.split(",") if f]
+    cells = ground_cells(ref, a.max_lateral)
     methods = ["ours"] + [m for m, _ in MODES]
     pooled = {m: {"err": [], "bad": [], "have": 0, "pixels": 0} for m in methods}
     pooled_pairs = {}
@@ -171,7 +177,7 @@ def main():
         if run.returncode != 0:
             sys.exit("stereo_vs_lidar: dem_offline failed on frame %d: %s" % (k, run.stderr.strip()))
         ours = cv2.imread(os.path.join(out, "dem_disparity_000000.png"), cv2.IMREAD_UNCHANGED).astype(np.float32) / 256.0
-        d_ref, hidden = reference_disparity(ref, k, left.shape, calib, a.min_depth, a.max_depth, a.max_lateral)
+        d_ref, hidden = reference_disparity(ref, cells, k, left.shape, calib, a.min_depth, a.max_depth)
         mask = d_ref > 0
         disp = {"ours": ours}
         for name, mode in MODES:
