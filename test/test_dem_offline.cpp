@@ -245,3 +245,26 @@ TEST_F(DemOffline, BadInputGivesOneLineAndNonZeroExit) {
   r = run("--frames 3");
   EXPECT_EQ(r.status, 2);
 }
+
+// docs/parameters.md says its table is generated from the code: it is `--list-parameters`,
+// line for line (regenerate it with the command below when a parameter or its meaning changes).
+TEST_F(DemOffline, ParameterDocIsTheListing) {
+  const Outcome r = run("--list-parameters");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto tableLines = [](std::istream& in) {
+    std::vector<std::string> rows;
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind("| ", 0) == 0 || line.rfind("|---", 0) == 0) rows.push_back(line);
+    return rows;
+  };
+  std::istringstream listed(r.out);
+  std::ifstream doc(std::string(SGD_SOURCE_DIR) + "/docs/parameters.md");
+  ASSERT_TRUE(doc.good());
+  const std::vector<std::string> want = tableLines(listed), have = tableLines(doc);
+  ASSERT_GT(want.size(), 100u);  // the header, its rule and every parameter
+  for (size_t i = 0; i < std::max(want.size(), have.size()); ++i) {
+    ASSERT_EQ(i < have.size() ? have[i] : "(missing)", i < want.size() ? want[i] : "(extra)")
+        << "docs/parameters.md line " << i + 1 << " of its table differs from `dem_offline --list-parameters`; "
+        << "regenerate the table: dem_offline --list-parameters";
+  }
+}

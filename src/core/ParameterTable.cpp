@@ -109,14 +109,14 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("hidden_pixel_ratio", &s.hidden_pixel_ratio, "vertex hidden by an obstacle when obstacle pixels > ratio * ground pixels", true);
   i("min_ground_pixels", &s.min_ground_pixels, "vertices with fewer ground pixels are not observed", true);
   d("min_incidence_ratio", &s.min_incidence_ratio,
-    "a vertex seen more obliquely than this fraction of level ground's incidence is not observed (0: off)", true);
+    "a vertex seen more obliquely than this fraction of level ground's incidence is not observed (0: off; `SurfaceIncidence`)", true);
   d("ground_band_m", &ob.ground_band_m, "ground raised or lowered by up to this is still ground [m]", true);
   d("far_depth_ratio", &ob.far_depth_ratio,
     "pixels a surface this many times farther than the ground explains better see past the mesh: excluded, no obstacle (0: off)", true);
   b("far_ground_seeds", &e.far_seeds.enabled,
-    "unknown vertices under ground seen past the surface (a crest's far side) start at its rough points", true);
+    "unknown vertices under ground seen past the surface (a crest's far side) start at its rough points, vertices standing above those pixels' rays at the ray; then the obstacle test runs again (`FarGroundSeedsOptions`)", true);
   b("rising_ground_seeds", &e.rising_seeds.enabled,
-    "vertices under ground rising out of the surface (an embankment the upright test flagged) start at its points", true);
+    "vertices under ground rising out of the surface (an embankment the upright test flagged) start at its points where they lie on one height per vertex and grow from the surface's ground not too steeply; then the obstacle test runs again (`RisingGroundSeedsOptions`)", true);
   d("hidden_body_depth_m", &ob.hidden_body_depth_m, "hidden ground this close to an obstacle is its body, farther its shadow (unknown) [m]", true);
   b("hidden_body_along_ray", &ob.hidden_body_along_ray,
     "... only behind the obstacle along the camera's rays (fewer marks on free ground, fewer obstacle cells found)", true);
@@ -134,17 +134,17 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   b("exclude_previous_obstacles", &e.exclude_previous_obstacles,
     "temporal pairs skip samples on the previous frame's obstacle pixels", true);
   b("carry_moving_texture", &e.carry_moving_texture,
-    "temporal pairs skip the texture flagged as moving at the same pixels in the last two frames (it moves with the vehicle)", true);
+    "temporal pairs skip the texture flagged as moving at the same pixels in the last two frames (it moves with the vehicle: a car ahead's shadow) from the start of the frame, pre-alignment included; needs `temporal_consistency`", true);
   b("repeat_from_prediction", &e.repeat_from_prediction,
-    "the finest temporal level's second pass (after the moving-texture test) starts from the prediction when its cost per sample is below hypothesis_win_ratio times the first pass's pose's", true);
+    "the finest temporal level's second pass (after the moving-texture test took texture out of the temporal pairs) starts from the prediction when its cost per sample is below `hypothesis_win_ratio` times the first pass's pose's: that pose was pulled by the texture (a car ahead and its shadow)", true);
   b("temporal_visibility", &e.temporal_visibility.enabled,
     "temporal pairs skip ground the previous camera did not see (hidden by the surface itself)", true);
   d("temporal_visibility_tolerance", &e.temporal_visibility.inverse_depth_tolerance,
     "hidden when the previous view's surface there is nearer by more than this share of the inverse depth", true);
   b("skyline_mask", &e.skyline.enabled,
-    "temporal pairs skip the ground's outline against a blank background (sky): it moves with the viewpoint", true);
+    "temporal pairs skip the ground's outline against a blank background (sky, glare): an occluding contour, it moves with the viewpoint, not with the ground (`SkylineMaskOptions`)", true);
   d("skyline_blank_gradient_grey_per_px", &e.skyline.blank_gradient_grey_per_px,
-    "... blank: mean image gradient over a 9 px box below this [grey/px]", true);
+    "... blank: mean image gradient over a 9 px box below this (a rendered sky's noise ~0.6, ground 3-9) [grey/px]", true);
   b("use_cross_temporal_pair", &e.use_cross_temporal_pair,
     "also align with the previous right image (ties motion to the stereo calibration)", true);
   d("motion_search_min_m", &e.motion_search_min_m, "search without a velocity: shortest step per frame period [m]", true);
@@ -164,7 +164,7 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   i("prealign_screen_iterations", &e.prealign_screen_iterations,
     "... of the rotation/scale hypotheses, the winner then gets the rest (0: all get all)", true);
   d("max_acceleration_mps2", &e.max_acceleration_mps2,
-    "a pre-alignment moving the camera more than this times the gap squared from the prediction is not trusted (0: no bound) [m/s^2]", true);
+    "a pre-alignment moving the camera more than this times the gap squared from the prediction is not trusted: the prediction's own is rejected (the joint levels start from the prediction), another start's is no candidate (0: no bound) [m/s^2]", true);
   i("prealign_refine_iterations", &e.prealign_refine_iterations, "then iterations one pyramid level finer when the motion was not the predicted one (0: never)", true);
   d("max_residual_ratio", &e.check.max_residual_ratio, "median residual above this times the usual: failure", true);
   d("max_residual_increase_grey", &e.check.max_residual_increase_grey, "... and above the usual plus this [grey]", true);
