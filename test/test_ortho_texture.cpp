@@ -419,3 +419,100 @@ TEST(PhotometricResidualMap, UsesTheTemporalGainAndTheRowShift) {
     else EXPECT_GT(median(m), 1.0);
   }
 }
+
+// What the estimator explained otherwise is not held against the surface: points seen through an
+// obstacle pixel are not used (the ground is hidden this frame), texture that moved (a shadow, a
+// vehicle) leaves the stereo term only. contradicted() names the cells the images keep refuting,
+// unpublishContradicted() takes their heights out of published layers.
+TEST(PhotometricResidualMap, MaskedPixelsDoNotCountAndContradictedCellsAreNamed) {
+  sgd::GroundGrid w;
+  const sgd::ElevationMap map = levelMap(&w);
+  const sgd::StereoRig k = rig();
+  Eigen::Isometry3d right0 = camera(0.0), right1 = camera(1.0);
+  right0.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
+  right1.translate(Eigen::Vector3d(0.54, 0.0, 0.0));
+  auto pixel = [&](const Eigen::Isometry3d& pose, double x, double y) {
+    const Eigen::Vector3d p = pose.inverse() * Eigen::Vector3d(x, y, 0.0);
+    return cv::Point(static_cast<int>(k.fx * p.x() / p.z() + k.cx), static_cast<int>(k.fy * p.y() / p.z() + k.cy));
+  };
+  // frame 1 paints the ground at x 11-12 m, y -0.5..0.5 m bright in its left image (and, for texture
+  // that lies on the ground, in its right image too: only the temporal pair sees a change)
+  const cv::Rect square_left(pixel(camera(1.0), 12.0, 0.5), pixel(camera(1.0), 11.0, -0.5));
+  struct Cell {
+    float rate, observations;
+    int contradicted;  ///< 1: the cell (11.5, 0) is contradicted
+  };
+  auto run = [&](bool on_the_ground, int obstacle_level, bool moving) {
+    sgd::PhotometricResidualMap res(0.5);
+    res.update(map, w, image(camera(0.0)), image(right0), k, camera(0.0), sgd::VerticalMisalignment(), {}, nullptr);
+    cv::Mat left1 = image(camera(1.0)), right = image(right1);
+    cv::rectangle(left1, square_left, cv::Scalar(250.0), cv::FILLED);
+    if (on_the_ground) {
+      cv::rectangle(right, cv::Rect(pixel(right1, 12.0, 0.5), pixel(right1, 11.0, -0.5)), cv::Scalar(250.0), cv::FILLED);
+    }
+    cv::Mat obstacles, moving_mask;
+    if (obstacle_level >= 0) {
+      const int s = 1 << obstacle_level;
+      obstacles = cv::Mat::zeros((k.height + s - 1) / s, (k.width + s - 1) / s, CV_8U);
+      cv::rectangle(obstacles, cv::Rect(square_left.tl() / s, square_left.br() / s), cv::Scalar(255), cv::FILLED);
+    }
+    if (moving) {
+      moving_mask = cv::Mat::zeros(k.height, k.width, CV_8U);
+      moving_mask(square_left).setTo(255);
+    }
+    const sgd::PhotometricParams same;
+    res.update(map, w, left1, right, k, camera(1.0), sgd::VerticalMisalignment(), {}, &same, obstacles, moving_mask);
+    const sgd::GroundGrid cell = sgd::GroundGrid::covering(11.5, 11.5, 0.0, 0.0, 0.5);
+    const sgd::GroundGrid near = sgd::GroundGrid::covering(8.0, 15.0, -3.0, 3.0, 0.5);
+    cv::Mat layer = cv::Mat::zeros(near.rows, near.cols, CV_32F);
+    const int unpublished = res.unpublishContradicted(near, {&layer});
+    // NaN exactly where contradicted, only on the cells the square overlaps (x 11-12, y -0.5..0.5)
+    EXPECT_EQ(unpublished, static_cast<int>(layer.total()) - cv::countNonZero(layer == layer));
+    const cv::Mat named = res.contradicted(near);
+    EXPECT_EQ(unpublished, cv::countNonZero(named));
+    for (int v = 0; v < near.vertexCount(); ++v) {
+      const Eigen::Vector2d p = near.position(v);
+      if (named.at<uint8_t>(near.rowOf(v), near.colOf(v))) EXPECT_TRUE(p.x() >= 11.0 && p.x() <= 12.0 && std::abs(p.y()) <= 0.5);
+    }
+    return Cell{res.layer(sgd::PhotometricResidualMap::Layer::kOutlierRate, cell).at<float>(0, 0),
+                res.layer(sgd::PhotometricResidualMap::Layer::kObservations, cell).at<float>(0, 0),
+                res.contradicted(cell).at<uint8_t>(0, 0) != 0 ? 1 : 0};
+  };
+  // An object the ground does not explain (both pairs see it): an outlier, contradicted at 0.5.
+  Cell c = run(false, -1, false);
+  EXPECT_EQ(c.rate, 0.5f);
+  EXPECT_EQ(c.observations, 2.0f);
+  EXPECT_EQ(c.contradicted, 1);
+  // ... seen through obstacle pixels (a mask at level 1, half size): the cell is not updated.
+  c = run(false, 1, false);
+  EXPECT_EQ(c.rate, 0.0f);
+  EXPECT_EQ(c.observations, 1.0f);
+  EXPECT_EQ(c.contradicted, 0);
+  // Texture new on the ground (a shadow): the temporal pair flags it ...
+  c = run(true, -1, false);
+  EXPECT_EQ(c.rate, 0.5f);
+  EXPECT_EQ(c.contradicted, 1);
+  // ... unless it is known to have moved: the stereo pair alone explains it.
+  c = run(true, -1, true);
+  EXPECT_EQ(c.rate, 0.0f);
+  EXPECT_EQ(c.observations, 2.0f);
+  EXPECT_EQ(c.contradicted, 0);
+  // A moving-texture mask does not excuse what the stereo pair refutes.
+  c = run(false, -1, true);
+  EXPECT_EQ(c.rate, 0.5f);
+  // Masks must be CV_8U at a pyramid level of the left image; the threshold > 0 (> 1: none).
+  sgd::PhotometricResidualMap res(0.5);
+  EXPECT_THROW(res.update(map, w, image(camera(0.0)), image(right0), k, camera(0.0), sgd::VerticalMisalignment(), {},
+                          nullptr, cv::Mat::zeros(100, 100, CV_8U)),
+               std::invalid_argument);
+  EXPECT_THROW(res.update(map, w, image(camera(0.0)), image(right0), k, camera(0.0), sgd::VerticalMisalignment(), {},
+                          nullptr, cv::Mat(), cv::Mat::zeros(k.height, k.width, CV_32F)),
+               std::invalid_argument);
+  sgd::PhotometricResidualOptions o;
+  std::string why;
+  o.max_published_outlier_rate = 0.0;
+  EXPECT_FALSE(o.isValid(&why));
+  EXPECT_EQ(why, "max_published_outlier_rate must be > 0 (above 1: every height published)");
+  o.max_published_outlier_rate = 1.5;
+  EXPECT_TRUE(o.isValid(&why));
+}

@@ -239,6 +239,11 @@ class IncrementalEstimator {
   cv::Mat lastLeftImage() const { return prev_left_ ? prev_left_->level(0).image : cv::Mat(); }
   /// ... and its right image.
   cv::Mat lastRightImage() const { return prev_right_ ? prev_right_->level(0).image : cv::Mat(); }
+  /// ... its obstacle pixels (CV_8U at the finest pyramid level the obstacle test gave; empty: none)
+  /// and the texture its temporal pairs found moving (likewise; empty for a start-up or recovered
+  /// frame): what PhotometricResidualMap::update should not hold against the surface.
+  cv::Mat lastObstacleMask() const { return finestMask(prev_obstacles_); }
+  cv::Mat lastMovingMask() const { return finestMask(prev_moving_); }
   ElevationMap& map() { return map_; }
   const Eigen::Isometry3d& groundTCamera0() const { return ground_T_camera0_; }
   const Eigen::Isometry3d& lastGroundTCamera() const { return ground_T_camera_; }
@@ -314,6 +319,11 @@ class IncrementalEstimator {
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
   double prealign_level_ = 0.0;  ///< running pre-alignment cost per sample of good frames
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
+  static cv::Mat finestMask(const std::vector<cv::Mat>& levels) {
+    for (const cv::Mat& m : levels)
+      if (!m.empty()) return m;
+    return cv::Mat();
+  }
   std::vector<cv::Mat> prev_moving_;     ///< moving texture of the previous left image, per level (empty: none)
   std::vector<cv::Mat> carried_moving_;  ///< ... flagged in the frame before it too (empty: none)
   std::vector<cv::Mat> prev_obstacles_;  ///< obstacle pixels of the previous left image, per level

@@ -21,6 +21,14 @@
 /// residuals (the frame's own noise level). Both are fused as exponential moving averages with the
 /// weight `update_weight` of the newest frame: `residual` [grey] and `outlier_rate` [0..1].
 ///
+/// Pixels the estimator explained otherwise do not count against the surface (update()'s masks):
+/// a point seen through an obstacle pixel is not used (the ground is hidden this frame: a car
+/// standing on it), and texture that moved (a moving shadow, a vehicle) leaves only the stereo
+/// term. What remains is the surface itself not explaining the images: ground hidden behind a
+/// guardrail that the mesh draped, a wrong height. contradicted() names the cells whose outlier
+/// rate reached `max_published_outlier_rate`; the products publish their heights as unknown
+/// (the estimator's map keeps them).
+///
 /// Cells live on the ElevationMap's lattice (same resolution), in tiles evicted like the map's;
 /// copies share tiles (LatticeTiles).
 
@@ -55,6 +63,10 @@ struct PhotometricResidualOptions {
   int image_margin_px = 2;         ///< points projecting this close to an image border are not used [px]
   double dark_level_grey = 1.5;        ///< sampled values at or below: the point is not used
   double saturated_level_grey = 253.5; ///< ... at or above
+  /// Cells whose outlier rate is at or above this are contradicted(): their heights are published as
+  /// unknown (> 1: none). With update_weight 0.5, 0.5 means: the cell's last observation was an
+  /// outlier (or every one before it was); 0.75: the last two were.
+  double max_published_outlier_rate = 0.5;
 
   bool isValid(std::string* why) const;
 };
@@ -71,10 +83,21 @@ class PhotometricResidualMap {
   /// rectification), the stereo pair's gain/bias (L = g R + b) and the temporal pair's
   /// (L_k = g L_{k-1} + b against the previous frame given to update(); null: no temporal pair this
   /// frame, e.g. a re-initialized one). Keeps a copy of the left image and the pose for the next
-  /// frame's temporal pair. Returns the cells updated.
+  /// frame's temporal pair. `obstacles` and `moving` (CV_8U, non-zero set; over the left image at
+  /// any pyramid level, i.e. its size halved k times; empty: none): points seen through an
+  /// obstacle pixel are not used, points on moving texture only in the stereo pair
+  /// (IncrementalEstimator::lastObstacleMask, lastMovingMask). Returns the cells updated.
   int update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left, const cv::Mat& right,
              const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera, const VerticalMisalignment& rectification,
-             const PhotometricParams& stereo, const PhotometricParams* temporal);
+             const PhotometricParams& stereo, const PhotometricParams* temporal, const cv::Mat& obstacles = cv::Mat(),
+             const cv::Mat& moving = cv::Mat());
+
+  /// Over `grid` (same resolution), CV_8U: 255 where the outlier rate is at or above
+  /// max_published_outlier_rate (the images contradict the height there), 0 elsewhere.
+  cv::Mat contradicted(const GroundGrid& grid) const;
+  /// Sets the cells contradicted() names to NaN in each of `layers` (CV_32F over `grid`); returns
+  /// how many cells.
+  int unpublishContradicted(const GroundGrid& grid, const std::vector<cv::Mat*>& layers) const;
 
   /// A layer over `grid` (on the cells' lattice: same resolution), CV_32F, NaN where never observed.
   cv::Mat layer(Layer which, const GroundGrid& grid) const;

@@ -196,6 +196,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("residual_update_weight", &o->residual.update_weight, "weight of the newest frame in the residual layers' moving averages (0..1]");
   d("residual_outlier_sigmas", &o->residual.outlier_sigmas, "a cell is an outlier when its residual exceeds this many robust sigmas of the frame's cells");
   d("residual_min_outlier_grey", &o->residual.min_outlier_grey, "... and this many grey levels [grey]");
+  d("residual_max_published_outlier_rate", &o->residual.max_published_outlier_rate,
+    "heights of cells whose outlier rate (obstacle pixels and moving texture not counted) is at or above this are published as unknown: the images keep contradicting them (ground a guardrail hides); > 1: all published (needs residual_enabled)");
   // the camera above the local ground
   d("attitude_radius_m", &o->attitude.radius_m, "ground attitude: map vertices within this distance of the camera's nadir [m]");
   d("attitude_min_coverage", &o->attitude.min_coverage, "ground attitude: fraction of that disc that must be known [-]");

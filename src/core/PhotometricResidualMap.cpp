@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "stereo_ground_dem/ImagePyramid.hpp"
 
@@ -38,6 +39,9 @@ bool PhotometricResidualOptions::isValid(std::string* why) const {
   if (tile_size < 8 || tile_size > 1024) return bad("tile_size must be in 8..1024");
   if (image_margin_px < 1 || image_margin_px > 1000) return bad("image_margin_px must be in 1..1000");
   if (!(dark_level_grey < saturated_level_grey)) return bad("need dark_level_grey < saturated_level_grey");
+  if (!(max_published_outlier_rate > 0.0) || std::isnan(max_published_outlier_rate)) {
+    return bad("max_published_outlier_rate must be > 0 (above 1: every height published)");
+  }
   return true;
 }
 
@@ -56,7 +60,8 @@ PhotometricResidualMap::PhotometricResidualMap(double resolution_m, const Photom
 int PhotometricResidualMap::update(const ElevationMap& map, const GroundGrid& window, const cv::Mat& left,
                                    const cv::Mat& right, const StereoRig& rig, const Eigen::Isometry3d& ground_T_camera,
                                    const VerticalMisalignment& rectification, const PhotometricParams& stereo,
-                                   const PhotometricParams* temporal) {
+                                   const PhotometricParams* temporal, const cv::Mat& obstacles,
+                                   const cv::Mat& moving) {
   if (!options_.enabled) return 0;
   if (left.type() != CV_32FC1 || right.type() != CV_32FC1 || left.size() != right.size() || left.cols < 2 ||
       left.rows < 2) {
@@ -66,6 +71,23 @@ int PhotometricResidualMap::update(const ElevationMap& map, const GroundGrid& wi
     throw std::invalid_argument("PhotometricResidualMap::update: window resolution differs from the map's");
   }
   const bool with_previous = temporal && !previous_left_.empty() && previous_left_.size() == left.size();
+  // The masks at their own level: a point's left pixel (u, v) is the mask's (u, v) * scale.
+  auto maskScale = [&left](const cv::Mat& m, const char* name) {
+    if (m.empty()) return 0.0;
+    if (m.type() != CV_8UC1) throw std::invalid_argument(std::string("PhotometricResidualMap::update: ") + name + " must be CV_8U");
+    for (int k = 0; k < 16; ++k) {
+      if (m.cols == ((left.cols + (1 << k) - 1) >> k) && m.rows == ((left.rows + (1 << k) - 1) >> k)) return 1.0 / (1 << k);
+    }
+    throw std::invalid_argument(std::string("PhotometricResidualMap::update: ") + name +
+                                " is not the left image's size at a pyramid level");
+  };
+  const double obstacle_scale = maskScale(obstacles, "obstacles"), moving_scale = maskScale(moving, "moving");
+  auto isSet = [](const cv::Mat& m, double scale, double u, double v) {
+    if (m.empty()) return false;
+    const int c = std::min(m.cols - 1, static_cast<int>(u * scale + 0.5));
+    const int r = std::min(m.rows - 1, static_cast<int>(v * scale + 0.5));
+    return m.at<uint8_t>(r, c) != 0;
+  };
   const Eigen::Isometry3d camera_T_ground = ground_T_camera.inverse();
   // The estimator's stereo geometry (StereoEstimator::rightTLeft, stereoTarget): the baseline, the
   // modelled y offset, and the row shift of the right image.
@@ -105,12 +127,13 @@ int PhotometricResidualMap::update(const ElevationMap& map, const GroundGrid& wi
           vr += rectification.rowShift(rig, ur, vr);
           if (!(vr >= margin && vr <= right.rows - 1 - margin)) continue;
         }
+        if (isSet(obstacles, obstacle_scale, u, w)) continue;  // hidden this frame
         const float l = ImagePyramid::sampleBilinear(left, u, w), rv = ImagePyramid::sampleBilinear(right, ur, vr);
         if (!usable(l) || !usable(rv)) continue;
         const double e_s = std::abs(l - (stereo.gain * rv + stereo.bias_grey));
         if (!std::isfinite(e_s)) continue;
         double r = std::min(clamp, e_s);
-        if (with_previous) {
+        if (with_previous && !isSet(moving, moving_scale, u, w)) {
           double up = 0, vp = 0;
           if (project(rig, previous_camera_T_ground_ * g, previous_left_, margin, &up, &vp)) {
             const float pv = ImagePyramid::sampleBilinear(previous_left_, up, vp);
@@ -175,6 +198,18 @@ cv::Mat PhotometricResidualMap::layer(Layer which, const GroundGrid& grid) const
     }
   }
   return out;
+}
+
+cv::Mat PhotometricResidualMap::contradicted(const GroundGrid& grid) const {
+  return layer(Layer::kOutlierRate, grid) >= options_.max_published_outlier_rate;  // NaN compares false
+}
+
+int PhotometricResidualMap::unpublishContradicted(const GroundGrid& grid, const std::vector<cv::Mat*>& layers) const {
+  const cv::Mat mask = contradicted(grid);
+  for (cv::Mat* l : layers) {
+    if (l && !l->empty()) l->setTo(std::numeric_limits<float>::quiet_NaN(), mask);
+  }
+  return cv::countNonZero(mask);
 }
 
 void PhotometricResidualMap::clear() {

@@ -341,7 +341,8 @@ void DemWorker::process(StereoFrame& f) {
       try {
         residual_->update(map, fr.window, estimator_->lastLeftImage(), estimator_->lastRightImage(), estimator_->rig(),
                           fr.ground_T_camera, fr.rectification, fr.photometric[0],
-                          fr.status == FrameStatus::kTracked ? &fr.photometric[1] : nullptr);
+                          fr.status == FrameStatus::kTracked ? &fr.photometric[1] : nullptr,
+                          estimator_->lastObstacleMask(), estimator_->lastMovingMask());
         residual_->evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
       } catch (const std::exception& e) {  // never expected; never fatal either
         diagnostics_.problem(std::string("photometric residual: ") + e.what(), false);

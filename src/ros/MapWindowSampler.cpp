@@ -63,7 +63,10 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
   padded.col0 -= pad;
   padded.rows += 2 * pad;
   padded.cols += 2 * pad;
-  const cv::Mat elevation_padded = map.layer(ElevationMap::Layer::kElevation, padded);
+  cv::Mat elevation_padded = map.layer(ElevationMap::Layer::kElevation, padded);
+  cv::Mat variance = map.layer(ElevationMap::Layer::kVariance, padded);
+  // heights the images kept contradicting (PhotometricResidualMap::contradicted) are unknown
+  if (extra.residual) extra.residual->unpublishContradicted(padded, {&elevation_padded, &variance});
   const TraversabilityLayers t = filter_.compute(padded, elevation_padded);
   const cv::Rect inner(pad, pad, w.cols, w.rows);
 
@@ -74,7 +77,6 @@ DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& re
   cv::Mat traversability = t.traversability(inner).clone();
   traversability.setTo(0.0f, obstacle >= 0.5f);  // NaN compares false: unknown stays as it is
   // The probability of being traversable from the heights' variance (0 on obstacles too).
-  const cv::Mat variance = map.layer(ElevationMap::Layer::kVariance, padded);
   cv::Mat probability = filter_.probability(padded, t, variance)(inner).clone();
   probability.setTo(0.0f, obstacle >= 0.5f);
 

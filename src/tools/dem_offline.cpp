@@ -417,7 +417,8 @@ int runSequence(const Args& a) {
       // the temporal pair only where the motion was estimated against the previous frame
       residual.update(est.map(), fr.window, est.lastLeftImage(), est.lastRightImage(), seq.rig(), fr.ground_T_camera,
                       fr.rectification, fr.photometric[0],
-                      fr.status == FrameStatus::kTracked ? &fr.photometric[1] : nullptr);
+                      fr.status == FrameStatus::kTracked ? &fr.photometric[1] : nullptr, est.lastObstacleMask(),
+                      est.lastMovingMask());
       residual.evictFarFrom(fr.ground_T_camera.translation().x(), fr.ground_T_camera.translation().y());
       residual_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     }
@@ -485,6 +486,8 @@ int runSequence(const Args& a) {
   dem.grid = map.knownBounds();
   dem.elevation = map.layer(ElevationMap::Layer::kElevation, dem.grid);
   dem.variance = map.layer(ElevationMap::Layer::kVariance, dem.grid);
+  // heights the images kept contradicting (ground the mesh draped behind a guardrail) are unknown
+  if (residual_options.enabled) residual.unpublishContradicted(dem.grid, {&dem.elevation, &dem.variance});
   {
     const TraversabilityFilter filter(o.traversability);
     const TraversabilityLayers t = filter.compute(dem.grid, dem.elevation);
