@@ -7,6 +7,7 @@
 
 #include "stereo_ground_dem/OrthoTexture.hpp"
 #include "stereo_ground_dem/PhotometricResidualMap.hpp"
+#include "level_ground_views.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -14,57 +15,13 @@ namespace sgd = stereo_ground_dem;
 
 namespace {
 
-sgd::StereoRig rig() {
-  sgd::StereoRig r;
-  r.fx = r.fy = 700.0;
-  r.cx = 600.0;
-  r.cy = 180.0;
-  r.baseline_m = 0.54;
-  r.width = 1200;
-  r.height = 370;
-  return r;
-}
-
-/// A camera 1.65 m above the ground at (x, 0), looking along +x (camera x = -y, y = -z, z = +x).
-Eigen::Isometry3d camera(double x) {
-  Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
-  g.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;
-  g.translation() = Eigen::Vector3d(x, 0.0, 1.65);
-  return g;
-}
-
-/// The ground's grey level at (x, y): smooth, so that a bilinear image sample is exact to ~0.1 grey.
-/// Along x the wave is long: 30 m ahead a pixel spans 0.7 m of ground along the view.
-double albedo(double x, double y) { return 120.0 + 40.0 * std::sin(2.0 * M_PI * x / 8.0) + 30.0 * std::cos(2.0 * M_PI * y / 1.5); }
-
-/// The image of the level ground z = 0 (albedo * gain + bias) seen from `g_t_c`; the sky is 250.
+sgd::StereoRig rig() { return sgd::test::levelGroundRig(); }
+Eigen::Isometry3d camera(double x) { return sgd::test::levelGroundCamera(x); }
+double albedo(double x, double y) { return sgd::test::levelGroundAlbedo(x, y); }
 cv::Mat image(const Eigen::Isometry3d& g_t_c, double gain = 1.0, double bias = 0.0, double offset = 0.0) {
-  const sgd::StereoRig k = rig();
-  cv::Mat im(k.height, k.width, CV_32F);
-  for (int v = 0; v < k.height; ++v) {
-    for (int u = 0; u < k.width; ++u) {
-      const Eigen::Vector3d d = g_t_c.linear() * Eigen::Vector3d((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0);
-      if (d.z() >= -1e-6) {
-        im.at<float>(v, u) = 250.0f;
-        continue;
-      }
-      const double t = -g_t_c.translation().z() / d.z();
-      const Eigen::Vector3d p = g_t_c.translation() + t * d;
-      im.at<float>(v, u) = static_cast<float>(gain * (albedo(p.x(), p.y()) + offset) + bias);
-    }
-  }
-  return im;
+  return sgd::test::levelGroundImage(g_t_c, gain, bias, offset);
 }
-
-/// A level map (heights 0) over x 0..60 m, y -20..20 m.
-sgd::ElevationMap levelMap(sgd::GroundGrid* window) {
-  *window = sgd::GroundGrid::covering(0.0, 60.0, -20.0, 20.0, 0.5);
-  sgd::ElevationMap map;
-  const int n = window->vertexCount();
-  map.fuse(*window, Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Constant(n, 1e4),
-           std::vector<uint8_t>(static_cast<size_t>(n), 1), 0);
-  return map;
-}
+sgd::ElevationMap levelMap(sgd::GroundGrid* window) { return sgd::test::levelGroundMap(window); }
 
 /// Largest |texture - expected| over the known texels with x in [x0, x1], y in [y0, y1]; counts them.
 double worstError(const sgd::OrthoTexture& t, double x0, double x1, double offset, int* known, double y0 = -3.0,

@@ -9,6 +9,10 @@
 ///   the first frame's exposure, 8-bit units] (OrthoTexture::sample: the mean of the cell's texels),
 ///   and with the photometric-residual map, residual [grey] and residual_outlier_rate [0..1].
 ///   Traversability is 0 wherever obstacle is 1, also where the ground under the obstacle is unknown.
+///   With the photometric-residual map, the heights it names contradicted() are unknown (NaN) in
+///   elevation, variance and every layer derived from them (slope, step, roughness, traversability
+///   and its confidence, so the OccupancyGrid's unknown); observations, obstacle and the residual
+///   layers keep their values there (the cell was seen; its height is what the images refute).
 /// All CV_32F, NaN where unknown. The filter runs on the window grown by its largest window
 /// radius so that cells at the border see the same neighbourhood as inside the map, then is
 /// cropped back. Large windows are decimated (every s-th vertex, the window aligned to s) to keep
