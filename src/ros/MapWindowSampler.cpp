@@ -45,15 +45,28 @@ int MapWindowSampler::stride(int rows, int cols, int max_cells) {
 
 DemLayers MapWindowSampler::sample(const ElevationMap& map, const GroundGrid& requested, int max_cells,
                                    const ExtraLayerSources& extra) const {
+  // The window aligned to the stride so that the decimated grid is on a lattice too; aligning can
+  // add a row and a column of the coarser lattice, so the stride grows until those fit as well
+  // (up to the window's size, where the coarse grid has 2 or 3 vertices a side).
+  auto aligned = [&requested](int k) {
+    auto floorTo = [k](int v) { return static_cast<int>(std::floor(static_cast<double>(v) / k)) * k; };
+    const int c1 = requested.col0 + requested.cols - 1, r1 = requested.row0 + requested.rows - 1;
+    GroundGrid a = requested;
+    a.col0 = floorTo(requested.col0);
+    a.row0 = floorTo(requested.row0);
+    a.cols = floorTo(c1 - a.col0 + k - 1) + 1;
+    a.rows = floorTo(r1 - a.row0 + k - 1) + 1;
+    return a;
+  };
+  auto coarseCount = [](const GroundGrid& a, int k) {
+    return static_cast<long>((a.rows - 1) / k + 1) * ((a.cols - 1) / k + 1);
+  };
   GroundGrid w = requested;
-  const int s = stride(w.rows, w.cols, max_cells);
-  if (s > 1) {  // align the window to the stride so that the decimated grid is on a lattice too
-    auto floorTo = [s](int v) { return static_cast<int>(std::floor(static_cast<double>(v) / s)) * s; };
-    const int c1 = w.col0 + w.cols - 1, r1 = w.row0 + w.rows - 1;
-    w.col0 = floorTo(w.col0);
-    w.row0 = floorTo(w.row0);
-    w.cols = floorTo(c1 - w.col0 + s - 1) + 1;
-    w.rows = floorTo(r1 - w.row0 + s - 1) + 1;
+  int s = stride(w.rows, w.cols, max_cells);
+  if (s > 1) {
+    w = aligned(s);
+    const int s_max = std::max(requested.rows, requested.cols);
+    while (coarseCount(w, s) > max_cells && s < s_max) w = aligned(++s);
   }
   // the filter on a padded window, cropped back
   const TraversabilityWindows fw = filter_.windows(w.resolution_m);

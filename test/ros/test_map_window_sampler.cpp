@@ -172,4 +172,18 @@ TEST(MapWindowSampler, DecimatedLayersAreTheFullOnesOnTheCoarserLattice) {
   }
   EXPECT_EQ(compared, static_cast<int>(coarse.layers.size()) * coarse.grid.vertexCount());
   EXPECT_GE(contradicted, 1);  // a coarse vertex falls into the square (x 12, y 0)
+  // The cap holds after the alignment: stride 3 fits 7 x 6 = 42 <= 45 vertices, but the window
+  // aligned to multiples of 3 has 8 x 7 = 56; stride 4 then (6 x 5 = 30).
+  const sgd::DemLayers capped = sampler.sample(s.map, w, 45, extra);
+  EXPECT_EQ(capped.grid.resolution_m, 2.0);
+  EXPECT_EQ(capped.grid.vertexCount(), 30);
+  for (int cap : {1, 4, 10, 30, 45, 60, 99, 100, 200, 357}) {
+    const sgd::DemLayers d = sampler.sample(s.map, w, cap, extra);
+    // a window across a multiple of every stride up to its size keeps 3 x 3 at least
+    EXPECT_LE(d.grid.vertexCount(), std::max(cap, 9)) << cap;
+    EXPECT_LE(d.grid.xOfCol(0), w.xOfCol(0)) << cap;
+    EXPECT_GE(d.grid.xOfCol(d.grid.cols - 1), w.xOfCol(w.cols - 1)) << cap;
+    EXPECT_LE(d.grid.yOfRow(0), w.yOfRow(0)) << cap;
+    EXPECT_GE(d.grid.yOfRow(d.grid.rows - 1), w.yOfRow(w.rows - 1)) << cap;
+  }
 }

@@ -53,8 +53,10 @@ class MapWindowSampler {
   explicit MapWindowSampler(const TraversabilityOptions& options = TraversabilityOptions());
   void setTraversability(const TraversabilityOptions& options);
 
-  /// The layers over `window` (on the map's lattice), decimated by the smallest stride that
-  /// keeps at most max_cells vertices (max_cells <= 0: no limit); `extra` adds their layers.
+  /// The layers over `window` (on the map's lattice), decimated by the smallest stride s whose
+  /// window, aligned to multiples of s (so that it covers `window` on the coarser lattice), has at
+  /// most max_cells vertices (max_cells <= 0: no limit; a cap below 9 may leave 2 or 3 vertices a
+  /// side); `extra` adds their layers.
   DemLayers sample(const ElevationMap& map, const GroundGrid& window, int max_cells = 0,
                    const ExtraLayerSources& extra = ExtraLayerSources()) const;
 
