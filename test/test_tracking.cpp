@@ -10,6 +10,7 @@
 #include "stereo_ground_dem/DisparityPlaneFit.hpp"
 #include "stereo_ground_dem/MotionPredictor.hpp"
 #include "stereo_ground_dem/Se3.hpp"
+#include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/TrackingCheck.hpp"
 
 using namespace stereo_ground_dem;
@@ -256,4 +257,66 @@ TEST(DisparityPlaneFit, RefusesTooFewMatchesAndPlanesThatAreNoGround) {
   // the ceiling of a tunnel 3 m above: the plane is above the camera
   p = fit.fit(planeMatches(rig, -Eigen::Vector3d::UnitY(), 3.0, 400, 0, 0.1, 5), rig);
   EXPECT_FALSE(p.ok);
+}
+
+// Beside a low camera the dominant plane of the matches may be a slope beside the track: more
+// matches, tilted 32 deg, 4.2 m "below" a camera 0.8 m high (the off-road scene rendered from 0.8 m:
+// the start-up took it for the ground, end rotation 2.9-3.5 deg, coverage 26 %). The ground a vehicle
+// starts on is near the attitude its camera is mounted at (nearAttitude).
+TEST(DisparityPlaneFit, TheGroundNearTheMountedAttitudeNotTheDominantSlope) {
+  const StereoRig rig = kittiRig();
+  const Eigen::Vector3d slope_down = Eigen::AngleAxisd(-30 * kDeg, Eigen::Vector3d::UnitZ()) * Eigen::Vector3d::UnitY();
+  std::vector<Eigen::Vector3f> pts = planeMatches(rig, slope_down, 4.2, 400, 0, 0.2, 11);
+  const auto ground = planeMatches(rig, Eigen::Vector3d::UnitY(), 0.8, 150, 0, 0.2, 12);
+  pts.insert(pts.end(), ground.begin(), ground.end());
+  const DisparityPlaneFitOptions o;
+  // the options' own bound (0.7 rad from the camera's down axis): the slope
+  DisparityPlane p = DisparityPlaneFit(o).fit(pts, rig);
+  ASSERT_TRUE(p.ok) << p.message;
+  EXPECT_NEAR(p.height_m, 4.2, 0.05);
+  // within 20 deg of a level camera's ground: the ground
+  p = DisparityPlaneFit(o.nearAttitude(Eigen::Vector3d::UnitY(), 0.35)).fit(pts, rig);
+  ASSERT_TRUE(p.ok) << p.message;
+  EXPECT_NEAR(p.height_m, 0.8, 0.01);
+  EXPECT_LT(std::acos(std::min(1.0, p.down.y())), 0.3 * kDeg);
+  EXPECT_GE(p.inliers, 0.95 * 150);
+  // a camera mounted 17 deg down sees its ground 17 deg from its own down axis: found around the
+  // mounted attitude, refused around a level one (the reason names the bound)
+  const Eigen::Vector3d mounted = Eigen::AngleAxisd(17 * kDeg, Eigen::Vector3d::UnitX()) * Eigen::Vector3d::UnitY();
+  const auto pitched = planeMatches(rig, mounted, 1.65, 300, 0, 0.2, 13);
+  p = DisparityPlaneFit(o.nearAttitude(mounted, 0.1)).fit(pitched, rig);
+  ASSERT_TRUE(p.ok) << p.message;
+  EXPECT_NEAR(p.height_m, 1.65, 0.02);
+  p = DisparityPlaneFit(o.nearAttitude(Eigen::Vector3d::UnitY(), 0.2)).fit(pitched, rig);
+  EXPECT_FALSE(p.ok);
+  EXPECT_NE(p.message.find("tilted at most 11.4"), std::string::npos) << p.message;
+  // a looser bound than the options' own is not taken; a bad direction leaves the options as they are
+  EXPECT_DOUBLE_EQ(o.nearAttitude(mounted, 1.0).max_tilt_rad, o.max_tilt_rad);
+  EXPECT_TRUE(o.nearAttitude(Eigen::Vector3d::Zero(), 0.2).expected_down.isApprox(Eigen::Vector3d::UnitY()));
+  EXPECT_DOUBLE_EQ(o.nearAttitude(Eigen::Vector3d::Zero(), 0.2).max_tilt_rad, o.max_tilt_rad);
+  DisparityPlaneFitOptions bad = o;
+  bad.expected_down = Eigen::Vector3d(0.0, 2.0, 0.0);
+  EXPECT_FALSE(bad.isValid(nullptr));
+}
+
+// The expected ground follows the mount's nominal pitch (positive down), with the sign of
+// StereoEstimator::nominalCameraPose: a camera pitched 0.5 rad down is refused its ground when the
+// options say it looks 0.5 rad up.
+TEST(DisparityPlaneFit, TheStartUpExpectsTheGroundOfTheNominalPitch) {
+  const StereoRig rig = kittiRig();
+  const Eigen::Vector3d mounted = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitX()) * Eigen::Vector3d::UnitY();
+  const auto pts = planeMatches(rig, mounted, 1.65, 300, 0, 0.2, 14);
+  StereoEstimatorOptions so;
+  so.nominal_pitch_down_rad = 0.5;
+  const DisparityPlaneFitOptions down = so.nearNominalAttitude(so.ground_plane);
+  EXPECT_NEAR(down.expected_down.dot(mounted), 1.0, 1e-9);
+  EXPECT_DOUBLE_EQ(down.max_tilt_rad, so.nominal_max_tilt_rad);
+  const DisparityPlane p = DisparityPlaneFit(down).fit(pts, rig);
+  ASSERT_TRUE(p.ok) << p.message;
+  EXPECT_NEAR(p.height_m, 1.65, 0.02);
+  so.nominal_pitch_down_rad = -0.5;
+  EXPECT_FALSE(DisparityPlaneFit(so.nearNominalAttitude(so.ground_plane)).fit(pts, rig).ok);
+  // 0: the options' own bound around the camera's axis (0.7 rad: the 0.5 rad ground passes)
+  so.nominal_max_tilt_rad = 0.0;
+  EXPECT_TRUE(DisparityPlaneFit(so.nearNominalAttitude(so.ground_plane)).fit(pts, rig).ok);
 }

@@ -24,9 +24,17 @@ struct DisparityPlaneFitOptions {
   int min_inliers = 30;
   double min_height_m = 0.2;         ///< plausible camera heights above the plane [m]
   double max_height_m = 10.0;
-  double max_tilt_rad = 0.7;         ///< the plane's normal within this of the camera's down axis
+  double max_tilt_rad = 0.7;         ///< the plane's normal within this of expected_down
+  /// The ground's expected unit normal, toward the ground, in the camera frame (the camera's down
+  /// axis for a level camera).
+  Eigen::Vector3d expected_down = Eigen::Vector3d::UnitY();
 
   bool isValid(std::string* why) const;
+  /// These options with the plane's normal within max_tilt_rad (if smaller than this->max_tilt_rad)
+  /// of `down` (normalized): the ground a vehicle starts on is near the attitude its camera is
+  /// mounted at, whereas the dominant plane of the matches may be a slope beside the track (an
+  /// embankment tilted 32 deg beside a camera 0.8 m high, docs/results.md, "A low camera").
+  DisparityPlaneFitOptions nearAttitude(const Eigen::Vector3d& down, double max_tilt_rad) const;
 };
 
 struct DisparityPlane {

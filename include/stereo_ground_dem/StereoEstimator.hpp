@@ -30,6 +30,10 @@ struct StereoEstimatorOptions {
   double nominal_height_m = 1.65;       ///< camera height above the ground, start-up guess [m]
   double nominal_pitch_down_rad = 0.0;  ///< start-up guess, positive looking down [rad]
   double nominal_roll_rad = 0.0;        ///< start-up guess [rad]
+  /// The start-up ground plane of the sparse matches (and a relocalization's) is tilted at most this
+  /// from the ground the nominal attitude expects (nominal_pitch_down_rad, nominal_roll_rad;
+  /// DisparityPlaneFitOptions::nearAttitude; 0: ground_plane's own bound around the camera's axis).
+  double nominal_max_tilt_rad = 0.35;
   double plane_fit_min_range_m = 5.0;   ///< the start-up plane is fitted on ground this near [m]
   double plane_fit_max_range_m = 15.0;  ///< [m]
   int plane_fit_coarsest_level = 3;     ///< pyramid levels used by the plane fit, coarse to fine
@@ -72,6 +76,9 @@ struct StereoEstimatorOptions {
   /// refused, and the start-up plane fit starts from this plane instead of the nominal pose.
   DisparityPlaneFitOptions ground_plane;
 
+  /// `plane` (the sparse matches' ground plane of the start-up, or a relocalization's) near the
+  /// nominal attitude: tilted at most nominal_max_tilt_rad from the ground it expects.
+  DisparityPlaneFitOptions nearNominalAttitude(const DisparityPlaneFitOptions& plane) const;
   /// `aligner` with the working range (min_range_m, max_range_m, max_lateral_m) filled in.
   SurfaceAlignerOptions alignerOptions() const;
   bool isValid(std::string* why) const;

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 
 namespace stereo_ground_dem {
@@ -18,7 +19,16 @@ bool DisparityPlaneFitOptions::isValid(std::string* why) const {
   }
   if (!(min_height_m > 0.0) || !(max_height_m > min_height_m)) return bad("need 0 < min_height_m < max_height_m");
   if (!(max_tilt_rad > 0.0 && max_tilt_rad < 1.5)) return bad("max_tilt_rad must be in (0, 1.5)");
+  if (!expected_down.allFinite() || std::abs(expected_down.norm() - 1.0) > 1e-6) return bad("expected_down must be a unit vector");
   return true;
+}
+
+DisparityPlaneFitOptions DisparityPlaneFitOptions::nearAttitude(const Eigen::Vector3d& down, double max_tilt) const {
+  DisparityPlaneFitOptions o = *this;
+  if (!(down.norm() > 0.0) || !down.allFinite()) return o;
+  o.expected_down = down.normalized();
+  if (max_tilt > 0.0 && max_tilt < max_tilt_rad) o.max_tilt_rad = max_tilt;
+  return o;
 }
 
 DisparityPlaneFit::DisparityPlaneFit(const DisparityPlaneFitOptions& options) : options_(options) {
@@ -47,7 +57,7 @@ DisparityPlane DisparityPlaneFit::fit(const std::vector<Eigen::Vector3f>& points
     *down = nh / norm;
     *h = 1.0 / norm;
     return std::isfinite(*h) && *h >= o.min_height_m && *h <= o.max_height_m &&
-           std::acos(std::clamp(down->y(), -1.0, 1.0)) <= o.max_tilt_rad;
+           std::acos(std::clamp(down->dot(o.expected_down), -1.0, 1.0)) <= o.max_tilt_rad;
   };
   auto tolerance = [&](double d) { return o.inlier_px + o.inlier_share * d; };
   std::mt19937 rng(o.seed);
@@ -71,7 +81,11 @@ DisparityPlane DisparityPlaneFit::fit(const std::vector<Eigen::Vector3f>& points
     }
   }
   if (best_count < o.min_inliers) {
-    out.message = "no ground plane among the matches (" + std::to_string(best_count) + " inliers at best)";
+    std::ostringstream os;
+    os << "no ground plane among the matches (" << best_count << " inliers at best; planes " << o.min_height_m << "-"
+       << o.max_height_m << " m below the camera, tilted at most " << o.max_tilt_rad * 180.0 / M_PI
+       << " deg from the expected ground)";
+    out.message = os.str();
     return out;
   }
   // least squares on the inliers, twice

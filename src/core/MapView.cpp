@@ -138,7 +138,7 @@ void MapView::initialHeights(const GroundGrid& w, const Eigen::Isometry3d& camer
 }
 
 bool MapView::groundAnchoredPose(const StereoPairCheck& check, const Eigen::Isometry3d& guess, Eigen::Isometry3d* out) const {
-  const DisparityPlane plane = DisparityPlaneFit(ground_plane_).fit(check.points, rig_);
+  const DisparityPlane plane = DisparityPlaneFit(stereo_.nearNominalAttitude(ground_plane_)).fit(check.points, rig_);
   if (!plane.ok) return false;
   // The map's plane z = p x + q y + c where the matched ground is: 4-15 m ahead of the guess.
   const Eigen::Isometry3d g_T_c = guess.inverse();

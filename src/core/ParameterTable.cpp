@@ -68,6 +68,8 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("nominal_height_m", &s.nominal_height_m, "camera height above the ground, start-up guess [m]");
   d("nominal_pitch_down_rad", &s.nominal_pitch_down_rad, "camera pitch, start-up guess, positive down [rad]");
   d("nominal_roll_rad", &s.nominal_roll_rad, "camera roll, start-up guess [rad]");
+  d("nominal_max_tilt_rad", &s.nominal_max_tilt_rad,
+    "the start-up (and a relocalization's) ground plane of the sparse matches is tilted at most this from the ground the nominal attitude expects: not a slope beside the track (0: the plane fit's own, wider bound around the camera's axis) [rad]");
   d("plane_fit_min_range_m", &s.plane_fit_min_range_m, "start-up plane fitted on ground from [m]");
   d("plane_fit_max_range_m", &s.plane_fit_max_range_m, "start-up plane fitted on ground up to [m]");
   // cost terms

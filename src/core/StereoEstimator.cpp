@@ -26,6 +26,7 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
   if (!(min_range_m > 0.0) || !(max_range_m > min_range_m)) return bad("need 0 < min_range_m < max_range_m");
   if (!(max_lateral_m > 0.0)) return bad("max_lateral_m must be > 0");
   if (!(nominal_height_m > 0.0)) return bad("nominal_height_m must be > 0");
+  if (!(nominal_max_tilt_rad >= 0.0 && nominal_max_tilt_rad < 1.5)) return bad("nominal_max_tilt_rad must be in [0, 1.5)");
   if (!(std::abs(nominal_pitch_down_rad) < 1.2)) return bad("nominal_pitch_down_rad must be within +-1.2 rad");
   if (!(plane_fit_min_range_m > 0.0) || !(plane_fit_max_range_m > plane_fit_min_range_m)) {
     return bad("need 0 < plane_fit_min_range_m < plane_fit_max_range_m");
@@ -48,6 +49,13 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
   if (!rectification.isValid(&w)) return bad("rectification: " + w);
   if (!(min_rectification_correction_px >= 0.0)) return bad("min_rectification_correction_px must be >= 0");
   return true;
+}
+
+DisparityPlaneFitOptions StereoEstimatorOptions::nearNominalAttitude(const DisparityPlaneFitOptions& plane) const {
+  // the ground's down direction (G's -z) in the nominal camera frame
+  const Eigen::Vector3d down =
+      StereoEstimator::nominalCameraPose(1.0, nominal_pitch_down_rad, nominal_roll_rad).linear() * -Eigen::Vector3d::UnitZ();
+  return nominal_max_tilt_rad > 0.0 ? plane.nearAttitude(down, nominal_max_tilt_rad) : plane;
 }
 
 StereoEstimator::StereoEstimator(const StereoRig& rig, const StereoEstimatorOptions& options)
@@ -260,7 +268,7 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
     res.message = check.problem;
     return res;
   }
-  const DisparityPlane plane = DisparityPlaneFit(o.ground_plane).fit(check.points, rig_);
+  const DisparityPlane plane = DisparityPlaneFit(o.nearNominalAttitude(o.ground_plane)).fit(check.points, rig_);
   if (!plane.ok) {
     res.pair_check = check;
     res.message = "no ground in view: " + plane.message;
