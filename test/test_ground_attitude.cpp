@@ -149,6 +149,38 @@ TEST(GroundAttitude, NominalMountReadsBack) {
   EXPECT_NEAR(nominal.roll_rad, -0.01, 1e-12);
 }
 
+// nominalMount inverts nominalCameraPose (the node reads the mount from the base_footprint ->
+// camera transform with it): heights, pitches down and up, rolls both ways; a yaw of the camera on
+// its base and a shift along the ground do not change the mount.
+TEST(GroundAttitude, NominalMountInvertsTheNominalPose) {
+  for (double h : {0.3, 0.8, 1.65, 3.0}) {
+    for (double p : {-0.4, 0.0, 0.15, 0.6}) {
+      for (double r : {-0.2, 0.0, 0.05}) {
+        Eigen::Isometry3d ground_T_camera = sgd::StereoEstimator::nominalCameraPose(h, p, r).inverse();
+        ground_T_camera = Eigen::Translation3d(0.4, -0.2, 0.0) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
+                          ground_T_camera;
+        const sgd::NominalMount m = sgd::StereoEstimator::nominalMount(ground_T_camera);
+        EXPECT_NEAR(m.height_m, h, 1e-12);
+        EXPECT_NEAR(m.pitch_down_rad, p, 1e-12) << h << " " << p << " " << r;
+        EXPECT_NEAR(m.roll_rad, r, 1e-12) << h << " " << p << " " << r;
+      }
+    }
+  }
+  // By hand: an optical frame (z forward, x right, y down) 0.8 m up, turned 10 deg about the
+  // base's y axis (left): it looks 10 deg down.
+  Eigen::Matrix3d optical;
+  optical << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  Eigen::Isometry3d base_T_camera = Eigen::Isometry3d::Identity();
+  base_T_camera.linear() = Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()) * optical;
+  base_T_camera.translation() = Eigen::Vector3d(0.2, 0.0, 0.8);
+  const sgd::NominalMount m = sgd::StereoEstimator::nominalMount(base_T_camera);
+  EXPECT_NEAR(m.height_m, 0.8, 1e-12);
+  EXPECT_NEAR(m.pitch_down_rad, 10.0 * M_PI / 180.0, 1e-12);
+  EXPECT_NEAR(m.roll_rad, 0.0, 1e-12);
+  const Eigen::Vector3d axis = base_T_camera.linear() * Eigen::Vector3d::UnitZ();
+  EXPECT_LT(axis.z(), -0.17) << "the optical axis points down";
+}
+
 // The mount check: the typical attitude of recent frames against the one at the start of the map.
 TEST(GroundAttitude, MountThatMovedWarnsBumpsDoNot) {
   const sgd::GroundAttitudeEstimator ga;

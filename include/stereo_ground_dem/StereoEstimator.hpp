@@ -21,6 +21,13 @@
 
 namespace stereo_ground_dem {
 
+/// Where a camera sits on level ground: its height and the attitude nominalCameraPose takes.
+struct NominalMount {
+  double height_m = 1.65;
+  double pitch_down_rad = 0.0;  ///< positive looking down
+  double roll_rad = 0.0;
+};
+
 struct StereoEstimatorOptions {
   double grid_resolution_m = 0.5;       ///< finest mesh spacing s [m]
   int mesh_levels = 4;                  ///< meshes 2^(L-1) s, ..., 2 s, s, each with pyramid level l
@@ -134,6 +141,10 @@ class StereoEstimator {
 
   /// camera_T_ground of a camera at height h above the origin, looking along +x, pitched down.
   static Eigen::Isometry3d nominalCameraPose(double height_m, double pitch_down_rad, double roll_rad);
+  /// The inverse of nominalCameraPose: the mount of a camera (optical frame: x right, y down, z
+  /// forward) at `ground_T_camera` in a frame whose x-y plane is the ground and z points up (a
+  /// robot's base_footprint, REP 103). Its yaw is dropped (the map's x axis is the camera's heading).
+  static NominalMount nominalMount(const Eigen::Isometry3d& ground_T_camera);
 
   /// Gain/bias guess from the grey-level statistics of the rows that see the working range.
   PhotometricParams initialPhotometric(const ImagePyramid& left, const ImagePyramid& right,

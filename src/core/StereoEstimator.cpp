@@ -2,6 +2,7 @@
 #include "stereo_ground_dem/SurfaceIncidence.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -75,6 +76,19 @@ Eigen::Isometry3d StereoEstimator::nominalCameraPose(double height_m, double pit
                              optical_to_ground;
   ground_T_camera.translation() = Eigen::Vector3d(0.0, 0.0, height_m);
   return ground_T_camera.inverse();
+}
+
+NominalMount StereoEstimator::nominalMount(const Eigen::Isometry3d& ground_T_camera) {
+  Eigen::Matrix3d optical_to_ground;
+  optical_to_ground << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  // ground_T_camera's rotation = Rz(yaw) Ry(pitch) Rx(roll) optical_to_ground (nominalCameraPose's,
+  // turned by a yaw): the last row of Rz Ry Rx is (-sin pitch, cos pitch sin roll, cos pitch cos roll).
+  const Eigen::Matrix3d m = ground_T_camera.linear() * optical_to_ground.transpose();
+  NominalMount mount;
+  mount.height_m = ground_T_camera.translation().z();
+  mount.pitch_down_rad = std::asin(std::clamp(-m(2, 0), -1.0, 1.0));
+  mount.roll_rad = std::atan2(m(2, 1), m(2, 2));
+  return mount;
 }
 
 Eigen::VectorXd StereoEstimator::updateWeights(const GroundGrid& grid, const Eigen::VectorXd& heights,

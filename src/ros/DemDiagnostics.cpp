@@ -134,6 +134,11 @@ void DemDiagnostics::processed(const FrameRecord& r) {
   if (!r.map_extent.empty()) map_extent_ = r.map_extent;
 }
 
+void DemDiagnostics::setMount(const std::string& text) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  mount_ = text;
+}
+
 void DemDiagnostics::problem(const std::string& text, bool error) {
   std::lock_guard<std::mutex> lock(mutex_);
   report(text, error);
@@ -231,6 +236,7 @@ void DemDiagnostics::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("camera above the local ground: height [m]", last_attitude_.height_m);
   stat.add("camera above the local ground: pitch [deg]", last_attitude_.pitch_rad * kDeg);
   stat.add("camera above the local ground: roll [deg]", last_attitude_.roll_rad * kDeg);
+  stat.add("camera mount, start-up guess", mount_.empty() ? std::string("not read yet (no frame)") : mount_);
   stat.add("camera mount", mount_warning_.empty() ? std::string("as at the start of the map (or not yet known)")
                                                    : mount_warning_);
   stat.add("last problem", last_problem_);

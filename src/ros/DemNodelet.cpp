@@ -173,6 +173,7 @@ void DemNodelet::onInit() {
                                        pipeline_.residual, pipeline_.attitude);
   worker_->setMemoryRelease(options_.release_memory_every_frames);
   worker_->setStartHold(options_.start_hold_frames);
+  worker_->setMountFromTf(options_.mount_from_tf && !options_.base_frame.empty());
   services_ = std::make_unique<DemServices>(*worker_, options_, pipeline_.traversability, getName());
 
   it_ = std::make_shared<image_transport::ImageTransport>(nh);

@@ -107,6 +107,29 @@ bool DemPublisher::baseTCamera(const std::string& camera_frame, Eigen::Isometry3
   return false;
 }
 
+bool DemPublisher::cameraMount(const std::string& camera_frame, NominalMount* mount, bool* have_height,
+                               std::string* source) {
+  std::lock_guard<std::mutex> lock(publish_mutex_);
+  if (shut_down_) return false;
+  Eigen::Isometry3d base_T_camera;
+  if (!baseTCamera(camera_frame, &base_T_camera)) return false;  // waits for /tf_static the first time
+  *have_height = false;
+  *source = options_.base_frame + " -> " + camera_frame + " (pitch, roll)";
+  if (!options_.footprint_frame.empty() &&
+      tf_buffer_->canTransform(options_.footprint_frame, camera_frame, ros::Time(0), ros::Duration(0.0))) {
+    try {
+      base_T_camera =
+          tf2::transformToEigen(tf_buffer_->lookupTransform(options_.footprint_frame, camera_frame, ros::Time(0)));
+      *have_height = true;
+      *source = options_.footprint_frame + " -> " + camera_frame;
+    } catch (const tf2::TransformException&) {
+      // as without the footprint frame
+    }
+  }
+  *mount = StereoEstimator::nominalMount(base_T_camera);
+  return true;
+}
+
 void DemPublisher::publishPose(const FrameResult& fr, const std_msgs::Header& header,
                                const std::string& camera_frame) {
   Eigen::Isometry3d base_T_camera = Eigen::Isometry3d::Identity();

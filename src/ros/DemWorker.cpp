@@ -3,6 +3,7 @@
 #include <ros/ros.h>
 
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "stereo_ground_dem/io/AllocatorTuning.hpp"
@@ -216,7 +217,7 @@ void DemWorker::applyReset() {
     if (reset) initialized_ = false;
   }
   if (recreate) {
-    estimator_ = std::make_unique<IncrementalEstimator>(estimator_->rig(), options);
+    estimator_ = std::make_unique<IncrementalEstimator>(estimator_->rig(), mounted(options));
     restartLayers(options, estimator_->map().options().resolution_m);
   } else if (reset && estimator_) {
     estimator_->reset();
@@ -229,6 +230,67 @@ void DemWorker::applyReset() {
     trajectory_xy_.clear();
     fused_frames_ = 0;
     last_processed_stamp_s_ = -1.0;
+  }
+}
+
+IncrementalEstimatorOptions DemWorker::mounted(IncrementalEstimatorOptions options) const {
+  if (!have_mount_) return options;
+  IncrementalEstimatorOptions o = options;
+  if (have_mount_height_) o.stereo.nominal_height_m = mount_.height_m;
+  o.stereo.nominal_pitch_down_rad = mount_.pitch_down_rad;
+  o.stereo.nominal_roll_rad = mount_.roll_rad;
+  std::string why;
+  return o.isValid(&why) ? o : options;  // readMount checked it with the same parameters
+}
+
+void DemWorker::readMount(const std::string& camera_frame, const IncrementalEstimatorOptions& parameters) {
+  constexpr double kDeg = 180.0 / M_PI;
+  const StereoEstimatorOptions& p = parameters.stereo;
+  char said[160];
+  std::snprintf(said, sizeof(said), "height %.2f m, pitch down %.1f deg, roll %.1f deg", p.nominal_height_m,
+                p.nominal_pitch_down_rad * kDeg + 0.0, p.nominal_roll_rad * kDeg + 0.0);
+  NominalMount m;
+  bool with_height = false;
+  std::string source;
+  have_mount_ = false;
+  if (!mount_from_tf_) {
+    diagnostics_.setMount(std::string("from the parameters (~mount_from_tf false or no ~base_frame): ") + said);
+    return;
+  }
+  if (!publisher_.cameraMount(camera_frame, &m, &with_height, &source)) {
+    diagnostics_.setMount(std::string("from the parameters (tf has no mount of '") + camera_frame + "'): " + said);
+    return;
+  }
+  if (!with_height) m.height_m = p.nominal_height_m;
+  IncrementalEstimatorOptions o = parameters;
+  o.stereo.nominal_height_m = m.height_m;
+  o.stereo.nominal_pitch_down_rad = m.pitch_down_rad;
+  o.stereo.nominal_roll_rad = m.roll_rad;
+  char read[160];
+  std::snprintf(read, sizeof(read), "height %.2f m%s, pitch down %.1f deg, roll %.1f deg", m.height_m,
+                with_height ? "" : " (~nominal_height_m)", m.pitch_down_rad * kDeg + 0.0, m.roll_rad * kDeg + 0.0);
+  std::string why;
+  if (!o.isValid(&why)) {
+    const std::string text = "the camera mount from tf " + source + " (" + read + ") is not usable: " + why +
+                             "; using the parameters: " + said + ". Check the transform or set ~mount_from_tf: false";
+    diagnostics_.problem(text, false);
+    diagnostics_.setMount(std::string("from the parameters (tf's is not usable): ") + said);
+    return;
+  }
+  have_mount_ = true;
+  have_mount_height_ = with_height;
+  mount_ = m;
+  diagnostics_.setMount("from tf " + source + ": " + read);
+  const bool differs = (with_height && std::abs(m.height_m - p.nominal_height_m) > 0.1) ||
+                       std::abs(m.pitch_down_rad - p.nominal_pitch_down_rad) > 3.0 / kDeg ||
+                       std::abs(m.roll_rad - p.nominal_roll_rad) > 3.0 / kDeg;
+  if (differs) {
+    ROS_WARN_NAMED(logger_,
+                   "camera mount from tf %s: %s, where the parameters say %s; tf's is used (~mount_from_tf: false "
+                   "keeps the parameters)",
+                   source.c_str(), read, said);
+  } else {
+    ROS_INFO_NAMED(logger_, "camera mount from tf %s: %s", source.c_str(), read);
   }
 }
 
@@ -255,8 +317,9 @@ void DemWorker::process(StereoFrame& f) {
       initialized_ = false;
       snapshot_ = std::make_shared<MapSnapshot>();
     }
+    readMount(f.camera_frame, options);
     try {
-      estimator_ = std::make_unique<IncrementalEstimator>(f.rig, options);
+      estimator_ = std::make_unique<IncrementalEstimator>(f.rig, mounted(options));
       restartLayers(options, estimator_->map().options().resolution_m);
       std::lock_guard<std::mutex> lock(control_mutex_);
       has_calibration_ = true;

@@ -8,7 +8,7 @@ namespace stereo_ground_dem {
 const std::vector<std::string>& RosNodeOptions::names() {
   static const std::vector<std::string> kNames = {
       "queue_size", "approximate_sync", "slop_s", "lazy", "tune_allocator", "release_memory_every_frames", "start_hold_frames", "odom_frame", "base_frame", "camera_frame",
-      "publish_tf", "tf_wait_s", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
+      "publish_tf", "tf_wait_s", "mount_from_tf", "footprint_frame", "local_map_size_m", "local_map_forward_m", "global_map_rate_hz",
       "global_map_max_cells", "mesh_max_triangles", "mesh_colors", "occupancy_unknown_below", "occupancy_min_certainty", "path_max_poses",
       "save_directory", "diagnostic_period_s", "input_check_period_s", "unobserved_std_m", "unobserved_std_rad",
       "motion_covariance_scale",
@@ -30,6 +30,8 @@ RosNodeOptions RosNodeOptions::load(const ros::NodeHandle& pnh) {
   pnh.param("camera_frame", o.camera_frame, o.camera_frame);
   pnh.param("publish_tf", o.publish_tf, o.publish_tf);
   pnh.param("tf_wait_s", o.tf_wait_s, o.tf_wait_s);
+  pnh.param("mount_from_tf", o.mount_from_tf, o.mount_from_tf);
+  pnh.param("footprint_frame", o.footprint_frame, o.footprint_frame);
   pnh.param("local_map_size_m", o.local_map_size_m, o.local_map_size_m);
   pnh.param("local_map_forward_m", o.local_map_forward_m, o.local_map_forward_m);
   pnh.param("global_map_rate_hz", o.global_map_rate_hz, o.global_map_rate_hz);

@@ -130,6 +130,9 @@ class KittiSampleTest(unittest.TestCase):
         rospy.loginfo('diagnostics: processing mean %s ms, max %s ms', kv.get('processing mean [ms]'),
                       kv.get('processing max [ms]'))
         self.assertEqual(int(kv['processed frames']), 6)
+        # the mount from tf (~footprint_frame base_link: level, 1.65 m under the camera)
+        self.assertRegex(kv['camera mount, start-up guess'],
+                         r'^from tf base_link -> \S+: height 1\.65 m, pitch down -?0\.0 deg, roll -?0\.0 deg$')
         self.assertEqual(int(kv['skipped (invalid input)']), 0)
         # the estimator's guards, as the offline runner's frames.csv has them for the same six frames:
         # no pre-alignment beyond the acceleration bound, frame 5's 2.4 cm shift from the prediction,

@@ -102,6 +102,12 @@ class SyntheticTest(unittest.TestCase):
         keys = {v.key for _, st in self.rec.diagnostic_statuses() for v in st.values}
         self.assertIn('camera above the local ground: height [m]', keys)
         self.assertIn('camera mount', keys)
+        # the start-up mount from tf: the bag has base_link -> camera but no base_footprint, so pitch
+        # and roll come from base_link and the height from ~nominal_height_m
+        kv = {v.key: v.value for v in self.rec.diagnostic_statuses()[-1][1].values}
+        self.assertRegex(kv['camera mount, start-up guess'],
+                         r'^from tf base_link -> \S+ \(pitch, roll\): height 1\.65 m \(~nominal_height_m\), '
+                         r'pitch down 0\.0 deg, roll 0\.0 deg$')
 
     def test_04_obstacle_is_lethal(self):
         _, occ = self.rec.occupancy[-1]

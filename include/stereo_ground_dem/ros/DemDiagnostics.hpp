@@ -83,6 +83,8 @@ class DemDiagnostics {
   void processed(const FrameRecord& record);
   /// Any other problem: WARN (error = false) or ERROR.
   void problem(const std::string& text, bool error);
+  /// Where the estimator's start-up guess of the camera's mount came from, and its values.
+  void setMount(const std::string& text);
 
   /// Counters for tests and the realtime check (same numbers as /diagnostics).
   struct Counts {
@@ -134,6 +136,7 @@ class DemDiagnostics {
   std::deque<GroundAttitudeEstimate> recent_attitudes_;  ///< the last mount_window_frames mapped frames
   GroundAttitudeEstimate first_attitude_;                ///< typical of the map's first full window
   GroundAttitudeEstimate last_attitude_;
+  std::string mount_;                                    ///< setMount
   std::string mount_warning_;                            ///< "" while the camera sits as at the start
 
   std::unique_ptr<diagnostic_updater::Updater> updater_;

@@ -51,6 +51,12 @@ class DemPublisher {
                       const std::string& camera_frame, const ExtraLayerSources& extra = ExtraLayerSources());
   /// The camera above the local ground (~ground_attitude) of one mapped frame.
   void publishAttitude(const GroundAttitudeEstimate& attitude, const ros::Time& stamp, const std::string& camera_frame);
+  /// The camera's mount on the robot from tf (RosNodeOptions::mount_from_tf): from footprint_frame
+  /// -> `camera_frame` when tf has it (*have_height true), else the pitch and roll from base_frame
+  /// -> `camera_frame` (*have_height false). The first lookup after a reset waits up to tf_wait_s
+  /// for /tf_static. Returns false when tf has neither (or base_frame is ''); `source` names the
+  /// transform used. Call from the processing thread.
+  bool cameraMount(const std::string& camera_frame, NominalMount* mount, bool* have_height, std::string* source);
   /// Forgets the trajectory, the covariance and the cached camera mount (a new map).
   void reset();
   /// Unregisters every output and the tf listener; waits for a publish() in progress, after which

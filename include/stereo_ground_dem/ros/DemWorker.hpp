@@ -46,6 +46,9 @@ class DemWorker {
   /// Frames processed with a velocity that still hold the frame after them, once tracking starts
   /// (StartHoldPolicy). Call before start().
   void setStartHold(int frames_with_velocity) { start_hold_ = StartHoldPolicy(frames_with_velocity); }
+  /// Take the start-up guess of the camera's mount from tf (DemPublisher::cameraMount) when the
+  /// estimator is created for a camera; the parameters where tf has nothing. Call before start().
+  void setMountFromTf(bool on) { mount_from_tf_ = on; }
 
   void start();
   /// Closes the slot and joins the thread (a frame being processed is finished first).
@@ -111,6 +114,15 @@ class DemWorker {
   /// New, empty layers beside the map (at every new map: the keep radius and the resolution follow
   /// the estimator's options).
   void restartLayers(const IncrementalEstimatorOptions& options, double resolution_m);
+  /// `options` with the mount read from tf (mount_) in place of the nominal parameters.
+  IncrementalEstimatorOptions mounted(IncrementalEstimatorOptions options) const;
+  /// Reads the mount of `camera_frame` from tf into mount_ if mount_from_tf_ (and says where the
+  /// start-up guess comes from: log, diagnostics).
+  void readMount(const std::string& camera_frame, const IncrementalEstimatorOptions& parameters);
+  bool mount_from_tf_ = false;
+  bool have_mount_ = false;         ///< mount_ holds the pitch and roll from tf
+  bool have_mount_height_ = false;  ///< ... and the height
+  NominalMount mount_;
   GroundAttitudeEstimator attitude_;
   long fused_frames_ = 0;
   int release_every_frames_ = 0;

@@ -34,6 +34,12 @@ struct RosNodeOptions {
   std::string camera_frame;           ///< '' takes the left image's header.frame_id
   bool publish_tf = true;
   double tf_wait_s = 0.5;             ///< wait for base_frame -> camera on the first frame [s]
+  /// Take the estimator's start-up guess of the mount (nominal_height_m, nominal_pitch_down_rad,
+  /// nominal_roll_rad) from tf when it has the camera: all three from footprint_frame -> camera,
+  /// or without that frame the pitch and roll from base_frame -> camera (its origin need not be on
+  /// the ground) and the height from the parameter. false: the parameters only.
+  bool mount_from_tf = true;
+  std::string footprint_frame = "base_footprint";  ///< on the ground under the robot, z up (REP 120)
   double local_map_size_m = 50.0;     ///< side of the local window [m]
   double local_map_forward_m = 15.0;  ///< its centre ahead of the camera [m]
   double global_map_rate_hz = 0.5;    ///< whole-map topics at most this often [Hz]; 0: never
