@@ -79,7 +79,13 @@ class RectificationMonitor {
 
   /// Matches `left` into `right` (single-channel CV_32F grey images at pyramid level
   /// options.match_level of the same size) and fits the misalignment. `rig` is at level 0.
-  StereoPairCheck measure(const cv::Mat& left, const cv::Mat& right, const StereoRig& rig) const;
+  /// `row_disparity` (optional, px at the match level, one per row; rows beyond it 0): the
+  /// disparity expected on each row, by which the right image's rows are shifted before matching,
+  /// so that windows on ground of that disparity gradient need no shear (a low camera's near ground
+  /// changes by baseline / height px per row, too fast for the translation-only Lucas-Kanade:
+  /// docs/results.md, "A low camera's start-up matches"). Matches are reported unshifted.
+  StereoPairCheck measure(const cv::Mat& left, const cv::Mat& right, const StereoRig& rig,
+                          const std::vector<float>* row_disparity = nullptr) const;
 
   /// Adds a pair's fit to the running estimate (ignored when !check.ok()).
   void accumulate(const StereoPairCheck& check);

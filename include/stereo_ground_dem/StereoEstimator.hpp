@@ -179,6 +179,10 @@ class StereoEstimator {
 
   /// Sparse-match check of a pair at the monitor's level (see RectificationMonitor).
   StereoPairCheck checkPair(const ImagePyramid& left, const ImagePyramid& right) const;
+  /// The same with the right image's rows shifted by the disparity of the ground the nominal mount
+  /// expects (RectificationMonitor::measure's row_disparity): the start-up's second try when the
+  /// matches hold no ground plane.
+  StereoPairCheck checkPairAlongNominalGround(const ImagePyramid& left, const ImagePyramid& right) const;
 
 
   /// The misalignment to model from now on (the incremental mode's running estimate); until it is

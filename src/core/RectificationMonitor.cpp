@@ -118,11 +118,35 @@ bool RectificationMonitor::refineWithShear(const cv::Mat& left, const cv::Mat& r
 }
 
 
-StereoPairCheck RectificationMonitor::measure(const cv::Mat& left, const cv::Mat& right, const StereoRig& rig) const {
+StereoPairCheck RectificationMonitor::measure(const cv::Mat& left, const cv::Mat& right_in, const StereoRig& rig,
+                                              const std::vector<float>* row_disparity) const {
   const auto t0 = std::chrono::steady_clock::now();
   StereoPairCheck out;
-  if (left.empty() || left.size() != right.size() || left.type() != CV_32F || right.type() != CV_32F) {
+  if (left.empty() || left.size() != right_in.size() || left.type() != CV_32F || right_in.type() != CV_32F) {
     throw std::invalid_argument("RectificationMonitor::measure: two CV_32F images of one size are required");
+  }
+  // The expected disparity of each row (0 without one): the right image's rows shifted by it.
+  const auto shiftAt = [row_disparity](float v) -> float {
+    if (!row_disparity || row_disparity->empty()) return 0.0f;
+    const int n = static_cast<int>(row_disparity->size());
+    const float vc = std::min(std::max(v, 0.0f), static_cast<float>(n - 1));
+    const int v0 = std::min(static_cast<int>(vc), n - 1), v1 = std::min(v0 + 1, n - 1);
+    const float f = vc - static_cast<float>(v0);
+    return (1.0f - f) * (*row_disparity)[static_cast<size_t>(v0)] + f * (*row_disparity)[static_cast<size_t>(v1)];
+  };
+  cv::Mat right = right_in;
+  if (row_disparity && !row_disparity->empty()) {
+    cv::Mat map_u(right_in.size(), CV_32F), map_v(right_in.size(), CV_32F);
+    for (int v = 0; v < right_in.rows; ++v) {
+      const float d = shiftAt(static_cast<float>(v));
+      float* mu = map_u.ptr<float>(v);
+      float* mv = map_v.ptr<float>(v);
+      for (int u = 0; u < right_in.cols; ++u) {
+        mu[u] = static_cast<float>(u) - d;
+        mv[u] = static_cast<float>(v);
+      }
+    }
+    cv::remap(right_in, right, map_u, map_v, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   }
   const RectificationMonitorOptions& o = options_;
   // Lucas-Kanade assumes equal brightness: map the right image to the left one's mean and
@@ -180,6 +204,7 @@ StereoPairCheck RectificationMonitor::measure(const cv::Mat& left, const cv::Mat
       if (std::hypot(pb[i].x - p0[i].x, pb[i].y - p0[i].y) > o.max_forward_backward_px) continue;
       cv::Point2f q = p1[i];
       if (o.refine_shear && !refineWithShear(left, right, rgu, rgv, p0[i], &q)) continue;
+      q.x -= shiftAt(q.y);  // where the shifted row came from
       du.push_back(scale * (p0[i].x - q.x));  // disparity, level 0
       dv.push_back(scale * (q.y - p0[i].y));  // vertical offset right - left, level 0
       ur.push_back(scale * q.x);

@@ -282,15 +282,26 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
     res.message = check.problem;
     return res;
   }
-  const DisparityPlane plane = DisparityPlaneFit(o.nearNominalAttitude(o.ground_plane)).fit(check.points, rig_);
+  const DisparityPlaneFit plane_fit(o.nearNominalAttitude(o.ground_plane));
+  DisparityPlane plane = plane_fit.fit(check.points, rig_);
+  StereoPairCheck used = check;
   if (!plane.ok) {
-    res.pair_check = check;
-    res.message = "no ground in view: " + plane.message;
-    return res;
+    // Matched again along the ground the mount expects: from a low camera the near ground's
+    // disparity changes too fast per row for the plain windows (docs/results.md, "A low camera's
+    // start-up matches").
+    const StereoPairCheck along = checkPairAlongNominalGround(left, right);
+    const DisparityPlane second = along.ok() ? plane_fit.fit(along.points, rig_) : DisparityPlane();
+    if (!second.ok) {
+      res.pair_check = check;
+      res.message = "no ground in view: " + plane.message;
+      return res;
+    }
+    plane = second;
+    used = along;
   }
   const Eigen::Isometry3d start = poseAbovePlane(plane.down, plane.height_m);
-  StereoResult res2 = estimateWith(left, right, modelled(rectification_set_ ? rectification_ : check.fit), &start);
-  res2.pair_check = check;
+  StereoResult res2 = estimateWith(left, right, modelled(rectification_set_ ? rectification_ : used.fit), &start);
+  res2.pair_check = used;
   return res2;
 }
 
@@ -419,6 +430,27 @@ StereoPairCheck StereoEstimator::checkPair(const ImagePyramid& left, const Image
   RectificationMonitorOptions o = options_.rectification;
   o.match_level = l;
   return RectificationMonitor(o).measure(left.level(l).image, right.level(l).image, rig_);
+}
+
+StereoPairCheck StereoEstimator::checkPairAlongNominalGround(const ImagePyramid& left, const ImagePyramid& right) const {
+  const int l = std::min(options_.rectification.match_level, left.levels() - 1);
+  RectificationMonitorOptions o = options_.rectification;
+  o.match_level = l;
+  // The nominal ground n . X = h in the camera (n its down direction): at pixel (u, v) the
+  // disparity is fx * baseline * n . K^-1 (u, v, 1) / h, taken at the principal column.
+  const Eigen::Isometry3d camera_T_ground =
+      nominalCameraPose(options_.nominal_height_m, options_.nominal_pitch_down_rad, options_.nominal_roll_rad);
+  const Eigen::Vector3d down = camera_T_ground.linear() * -Eigen::Vector3d::UnitZ();
+  const double scale = std::ldexp(1.0, l);
+  const int rows = left.level(l).image.rows;
+  std::vector<float> row_disparity(static_cast<size_t>(rows), 0.0f);
+  for (int v = 0; v < rows; ++v) {
+    const double v0 = scale * v;
+    const double n_ray = down.y() * (v0 - rig_.cy) / rig_.fy + down.z();
+    const double d0 = rig_.fx * rig_.baseline_m * n_ray / options_.nominal_height_m;
+    row_disparity[static_cast<size_t>(v)] = static_cast<float>(std::max(0.0, d0) / scale);
+  }
+  return RectificationMonitor(o).measure(left.level(l).image, right.level(l).image, rig_, &row_disparity);
 }
 
 ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const ImagePyramid& right,
