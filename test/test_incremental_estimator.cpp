@@ -329,6 +329,8 @@ TEST(IncrementalEstimator, AMapContinuedFromItsSavedStateEqualsOneRun) {
   const auto second = makeRun();
   const SavedMapState back = MapStateFile::read(dir, &second->est.map(), &second->ortho, &second->residual);
   EXPECT_EQ(back.next_sequence_frame, half);
+  EXPECT_GT(saved.estimator.temporal_residual_level_grey, 0.5);  // the tracking check's level of the temporal pair
+  EXPECT_EQ(back.estimator.temporal_residual_level_grey, saved.estimator.temporal_residual_level_grey);
   second->est.restore(back.estimator);
   EXPECT_TRUE(second->est.initialized());
   process(second.get(), half, n);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "stereo_ground_dem/DisparityPlaneFit.hpp"
@@ -52,6 +53,12 @@ TEST(MotionPredictor, ConstantVelocityScalesWithTheStampGap) {
   d.p.forgetVelocity();
   EXPECT_FALSE(d.p.velocityKnown());
   EXPECT_TRUE(d.p.predict(10.2).isApprox(d.pose1, 1e-12));
+  // Dead reckoning over failed frames: the untrusted velocity still moves the pose on, by the gap.
+  EXPECT_NEAR((between(d.pose1, d.p.coast(10.2)) - d.step_per_frame).norm(), 0.0, 1e-9);
+  EXPECT_NEAR((between(d.pose1, d.p.coast(10.4)) - 3.0 * d.step_per_frame).norm(), 0.0, 1e-9);
+  // ... until a pose is set without one
+  d.p.setPose(d.pose1, 10.5);
+  EXPECT_TRUE(d.p.coast(10.7).isApprox(d.pose1, 1e-12));
 }
 
 TEST(MotionPredictor, HypothesesCoverTurnsAttitudeStepsAndSpeedChanges) {
@@ -170,6 +177,35 @@ TEST(TrackingCheck, EachReasonAtItsThreshold) {
   e.median_residual_grey = 4.1;
   EXPECT_NE(check.failure(e), "");
   e.usual_residual_grey = 0.0;  // no level yet: not judged
+  EXPECT_EQ(check.failure(e), "");
+  // The temporal pair against its own level, the same limit: a final level of the stereo pair alone
+  // does not see a wrong motion (the rolling scene from 0.8 m, frame 16: 28.6 grey, usual 1.4).
+  e = ok;
+  e.usual_temporal_residual_grey = 1.5;  // limit 4.5 grey
+  e.temporal_residual_grey = 4.4;
+  EXPECT_EQ(check.failure(e), "");
+  e.temporal_residual_grey = 4.6;
+  EXPECT_EQ(check.failure(e), "the motion does not explain the previous image: its median residual 4.6 grey (usual 1.5)");
+  e.usual_temporal_residual_grey = 2.0;  // limit 6 grey
+  EXPECT_EQ(check.failure(e), "");
+  e.temporal_residual_grey = 6.1;
+  EXPECT_NE(check.failure(e), "");
+  // Twice the usual stamp gap (frames dropped): the images differ more, the limit doubles (12 grey)
+  e.temporal_gap_ratio = 2.0;
+  e.temporal_residual_grey = 11.9;
+  EXPECT_EQ(check.failure(e), "");
+  e.temporal_residual_grey = 12.1;
+  EXPECT_EQ(check.failure(e),
+            "the motion does not explain the previous image: its median residual 12.1 grey (usual 2, over 2x the "
+            "usual stamp gap)");
+  e.temporal_gap_ratio = 0.5;  // a shorter gap never tightens it
+  e.temporal_residual_grey = 5.9;
+  EXPECT_EQ(check.failure(e), "");
+  e.temporal_gap_ratio = 1.0;
+  e.usual_temporal_residual_grey = 0.0;  // no level yet
+  EXPECT_EQ(check.failure(e), "");
+  e.usual_temporal_residual_grey = 2.0;
+  e.temporal_residual_grey = std::numeric_limits<double>::quiet_NaN();  // not measured
   EXPECT_EQ(check.failure(e), "");
   TrackingCheckOptions bad;
   bad.max_residual_ratio = 1.0;

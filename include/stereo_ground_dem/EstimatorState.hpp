@@ -30,6 +30,7 @@ struct EstimatorState {
   bool velocity_known = false;
   // running levels of good frames
   double residual_level_grey = 0.0;
+  double temporal_residual_level_grey = 0.0;  ///< ... of the temporal pair (0: unknown)
   double prealign_level = 0.0;
   std::array<PhotometricParams, 3> last_photometric;
   int consecutive_failures = 0;

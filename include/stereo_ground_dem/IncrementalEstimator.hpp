@@ -204,8 +204,8 @@ struct FrameResult {
   bool repeat_from_prediction = false;  ///< the finest temporal level's second pass started from the prediction
   /// Median |residual| of the stereo pair and of the (current, previous left) pair at the finest
   /// level with motion [grey]: the stereo pair does not depend on the motion, so a temporal
-  /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck does not
-  /// use it yet: docs/results.md, "Long gaps").
+  /// residual far above it means the motion is wrong (recorded in frames.csv; TrackingCheck fails a
+  /// frame whose temporal residual is far above the usual level of good frames' temporal residuals).
   double stereo_residual_grey = 0.0;
   double temporal_residual_grey = 0.0;
   int obstacle_pixels = 0;               ///< at the obstacle test level
@@ -317,6 +317,7 @@ class IncrementalEstimator {
   TrackingCheck check_;
   SkylineMask skyline_;
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
+  double temporal_residual_level_ = 0.0;  ///< ... of their temporal pair (FrameResult::temporal_residual_grey)
   double prealign_level_ = 0.0;  ///< running pre-alignment cost per sample of good frames
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;
   static cv::Mat finestMask(const std::vector<cv::Mat>& levels) {

@@ -55,8 +55,14 @@ class MotionPredictor {
   void setPose(const Eigen::Isometry3d& camera_T_ground, double stamp_s);
   /// A tracked frame: the velocity becomes the step from the last pose over the stamp gap.
   void update(const Eigen::Isometry3d& camera_T_ground, double stamp_s);
-  /// After a failure: the velocity is no longer trusted (the last pose stays).
+  /// After a failure: the velocity is no longer trusted (the last pose stays; coast() still
+  /// extrapolates with it).
   void forgetVelocity() { velocity_known_ = false; }
+  /// Dead reckoning: the last pose moved on at the last measured velocity, trusted or not (no
+  /// velocity since reset() or setPose(): the last pose). The pose of a frame that failed, and
+  /// where a re-initialization after failures places the camera: standing still instead lost the
+  /// distance driven meanwhile (the rolling scene from 0.8 m: 4 m over three failed frames).
+  Eigen::Isometry3d coast(double stamp_s) const;
   /// Puts back a state read from lastPose(), lastStamp(), velocity(), lastGap() and
   /// velocityKnown() (a saved map continued in another run).
   void restore(const Eigen::Isometry3d& camera_T_ground, double stamp_s, const Vector6d& velocity, double gap_s,

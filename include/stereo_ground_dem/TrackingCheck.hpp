@@ -3,6 +3,7 @@
 /// The plausibility tests of a tracked frame (METHOD.md section 6, step 7): a frame that fails
 /// one is not fused, its pose follows the prediction, and the map stays untouched.
 
+#include <limits>
 #include <string>
 
 #include "stereo_ground_dem/Se3.hpp"
@@ -17,8 +18,10 @@ struct TrackingCheckOptions {
   double max_height_jump_m = 0.4;         ///< a well-known vertex moving this far is implausible ...
   double max_jump_fraction = 0.15;        ///< ... for more than this fraction of them
   double max_outside_fraction = 0.6;      ///< more samples warped outside the images: failure
-  double max_residual_ratio = 3.0;        ///< median residual above ratio * the usual level ...
-  double max_residual_increase_grey = 3.0;  ///< ... and above usual + this is a failure [grey]
+  /// Median residual above ratio * the usual level and above usual + max_residual_increase_grey
+  /// is a failure; the same for the temporal pair's residual against its own usual level.
+  double max_residual_ratio = 3.0;
+  double max_residual_increase_grey = 3.0;  ///< [grey]
   int min_samples = 500;                  ///< fewer pixel samples in the final level: failure
 
   bool isValid(std::string* why) const;
@@ -36,6 +39,16 @@ struct TrackingEvidence {
   int jumps = 0;                  ///< ... that moved more than max_height_jump_m
   double median_residual_grey = 0.0;
   double usual_residual_grey = 0.0;  ///< running level of good frames (0: unknown yet)
+  /// The previous left image against this one at the finest temporal level [grey]:
+  /// the motion's own test. The final level may align the stereo pair alone (temporal_finest_level
+  /// > 0), whose residual does not see a wrong motion. 0 or NaN: not measured.
+  double temporal_residual_grey = std::numeric_limits<double>::quiet_NaN();
+  double usual_temporal_residual_grey = 0.0;  ///< running level of good frames (0: unknown yet)
+  /// This frame's stamp gap over the gap the usual temporal level was learnt at (>= 1): the two
+  /// images differ more the farther the camera moved between them (occlusions, viewpoint, light),
+  /// and the temporal limit grows with it. A node that dropped 10 frames (KITTI raw 0013, a 1.1 s
+  /// step after 0.1-0.2 s ones) still aligned the step, 4.7 grey against a usual 1.0.
+  double temporal_gap_ratio = 1.0;
 };
 
 class TrackingCheck {

@@ -136,7 +136,7 @@ void IncrementalEstimator::reset() {
   map_.clear();
   initialized_ = false;
   predictor_.reset();
-  residual_level_ = prealign_level_ = 0.0;
+  residual_level_ = prealign_level_ = temporal_residual_level_ = 0.0;
   prev_left_.reset();
   prev_right_.reset();
   prev_obstacles_.clear();
@@ -158,6 +158,7 @@ EstimatorState IncrementalEstimator::state() const {
   s.velocity_gap_s = predictor_.lastGap();
   s.velocity_known = predictor_.velocityKnown();
   s.residual_level_grey = residual_level_;
+  s.temporal_residual_level_grey = temporal_residual_level_;
   s.prealign_level = prealign_level_;
   s.last_photometric = last_photometric_;
   s.consecutive_failures = consecutive_failures_;
@@ -183,7 +184,8 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
   const auto finite = [](const Eigen::Isometry3d& t) { return t.matrix().allFinite(); };
   if (!finite(s.ground_T_camera0) || !finite(s.ground_T_camera) || !finite(s.last_camera_T_ground) ||
       !s.velocity.allFinite() || !std::isfinite(s.last_stamp_s) || !std::isfinite(s.velocity_gap_s) ||
-      !std::isfinite(s.residual_level_grey) || !std::isfinite(s.prealign_level))
+      !std::isfinite(s.residual_level_grey) || !std::isfinite(s.prealign_level) ||
+      !std::isfinite(s.temporal_residual_level_grey))
     fail("a pose, the velocity, the stamp or a residual level is not finite");
   if (s.frame_counter < 0 || s.consecutive_failures < 0 || s.rectification_pairs < 0) fail("negative counter");
   const auto checkImage = [&](const cv::Mat& m, const char* name) {
@@ -234,6 +236,7 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
   ground_T_camera_ = s.ground_T_camera;
   predictor_.restore(s.last_camera_T_ground, s.last_stamp_s, s.velocity, s.velocity_gap_s, s.velocity_known);
   residual_level_ = s.residual_level_grey;
+  temporal_residual_level_ = s.temporal_residual_level_grey;
   prealign_level_ = s.prealign_level;
   last_photometric_ = s.last_photometric;
   consecutive_failures_ = s.consecutive_failures;
@@ -399,7 +402,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     initialized_ = true;
     predictor_.setPose(sr.ground_T_camera.inverse(), stamp_s);
     residual_level_ = sr.median_abs_residual_grey;
-    prealign_level_ = 0.0;
+    prealign_level_ = temporal_residual_level_ = 0.0;
     prev_obstacles_ = sr.obstacles.excluded;
     prev_moving_.clear();
     carried_moving_.clear();
@@ -596,6 +599,11 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   ev.jumps = jumps;
   ev.median_residual_grey = last.median_abs_residual_grey;
   ev.usual_residual_grey = residual_level_;
+  ev.temporal_residual_grey = res.temporal_residual_grey;
+  ev.usual_temporal_residual_grey = temporal_residual_level_;
+  // the level is learnt at about the last tracked step's gap (none yet: the nominal frame period)
+  const double usual_gap_s = predictor_.lastGap() > 0.0 ? predictor_.lastGap() : options_.nominal_frame_period_s;
+  ev.temporal_gap_ratio = std::max(1.0, dt / usual_gap_s);
   const std::string failure = check_.failure(ev);
   if (!failure.empty()) {
     ++consecutive_failures_;
@@ -611,7 +619,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
                                std::to_string(res.prealign_discarded) + " ended beyond it)"
                          : " (no pre-alignment start aligned)";
     }
-    res.ground_T_camera = predicted.inverse();
+    // the pose moves on at the last velocity (without one, `predicted` is the search's best start)
+    res.ground_T_camera = predictor_.coast(stamp_s).inverse();
     return res;
   }
 
@@ -643,6 +652,11 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   }
   residual_level_ = residual_level_ > 0.0 ? 0.8 * residual_level_ + 0.2 * last.median_abs_residual_grey
                                           : last.median_abs_residual_grey;
+  if (res.temporal_residual_grey > 0.0) {  // 0: not measured
+    const double at_usual_gap = res.temporal_residual_grey / ev.temporal_gap_ratio;  // (as the check scales it)
+    temporal_residual_level_ =
+        temporal_residual_level_ > 0.0 ? 0.8 * temporal_residual_level_ + 0.2 * at_usual_gap : at_usual_gap;
+  }
   prev_obstacles_ = obstacles.excluded;
   // What this frame and the one before both flagged moved with the vehicle (every level of both
   // sets present and alike in size, else nothing is carried).
@@ -857,7 +871,7 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   // plane there (groundAnchoredPose: a slope stays a slope), else on a level plane at the map's
   // height under it.
   FrameResult& res = *out;
-  const Eigen::Isometry3d predicted = predict(stamp_s);
+  const Eigen::Isometry3d predicted = predictor_.coast(stamp_s);  // the velocity is not trusted, but the best guess
   const StereoResult sr = stereo_.estimate(left, right);
   if (!sr.ok) {
     ++failures_total_;
@@ -922,6 +936,7 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   res.message = "re-initialized from the stereo pair after " + std::to_string(consecutive_failures_) + " failures";
   predictor_.setPose(ground_T_camera.inverse(), stamp_s);
   residual_level_ = sr.median_abs_residual_grey;
+  temporal_residual_level_ = 0.0;  // the scene may have changed since the failures: learnt again
   prev_obstacles_ = sr.obstacles.excluded;
   prev_moving_.clear();
   carried_moving_.clear();

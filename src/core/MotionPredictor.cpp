@@ -73,6 +73,10 @@ Eigen::Isometry3d MotionPredictor::predict(double stamp_s) const {
   return Se3::exp(velocity_ * gap(stamp_s)) * last_camera_T_ground_;
 }
 
+Eigen::Isometry3d MotionPredictor::coast(double stamp_s) const {
+  return Se3::exp(velocity_ * gap(stamp_s)) * last_camera_T_ground_;
+}
+
 std::vector<Eigen::Isometry3d> MotionPredictor::hypotheses(double stamp_s) const {
   const double dt = gap(stamp_s);
   const Vector6d step = velocity_ * dt;

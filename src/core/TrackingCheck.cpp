@@ -31,6 +31,9 @@ std::string TrackingCheck::failure(const TrackingEvidence& e) const {
   std::ostringstream why;
   const double limit = std::max(o.max_residual_ratio * e.usual_residual_grey,
                                 e.usual_residual_grey + o.max_residual_increase_grey);
+  const double temporal_limit = std::max(o.max_residual_ratio * e.usual_temporal_residual_grey,
+                                         e.usual_temporal_residual_grey + o.max_residual_increase_grey) *
+                                std::max(1.0, e.temporal_gap_ratio);
   if (e.degenerate) {
     why << "normal equations degenerate";
   } else if (!e.finite) {
@@ -46,6 +49,11 @@ std::string TrackingCheck::failure(const TrackingEvidence& e) const {
   } else if (e.usual_residual_grey > 0.0 && e.median_residual_grey > limit) {
     why << "alignment did not converge: median residual " << e.median_residual_grey << " grey (usual "
         << e.usual_residual_grey << ")";
+  } else if (e.usual_temporal_residual_grey > 0.0 && e.temporal_residual_grey > temporal_limit) {
+    why << "the motion does not explain the previous image: its median residual " << e.temporal_residual_grey
+        << " grey (usual " << e.usual_temporal_residual_grey;
+    if (e.temporal_gap_ratio >= 1.1) why << ", over " << e.temporal_gap_ratio << "x the usual stamp gap";
+    why << ")";
   }
   return why.str();
 }
