@@ -181,6 +181,22 @@ TEST(GroundAttitude, NominalMountInvertsTheNominalPose) {
   EXPECT_LT(axis.z(), -0.17) << "the optical axis points down";
 }
 
+// The ground's down direction in the camera at the nominal mount: level, it is the optical y axis;
+// pitched 10 deg down, the optical axis has sin(10 deg) of it.
+TEST(GroundAttitude, NominalDownFollowsTheMount) {
+  sgd::StereoEstimatorOptions o;
+  o.nominal_pitch_down_rad = 0.0;
+  o.nominal_roll_rad = 0.0;
+  EXPECT_NEAR((o.nominalDown() - Eigen::Vector3d::UnitY()).norm(), 0.0, 1e-12);
+  o.nominal_pitch_down_rad = 10.0 * M_PI / 180.0;
+  EXPECT_NEAR(o.nominalDown().z(), std::sin(o.nominal_pitch_down_rad), 1e-12);
+  EXPECT_NEAR(o.nominalDown().y(), std::cos(o.nominal_pitch_down_rad), 1e-12);
+  EXPECT_NEAR(o.nominalDown().x(), 0.0, 1e-12);
+  o.nominal_roll_rad = 0.1;  // a roll tips it sideways, a unit vector still
+  EXPECT_GT(std::abs(o.nominalDown().x()), 0.09);
+  EXPECT_NEAR(o.nominalDown().norm(), 1.0, 1e-12);
+}
+
 // The mount check: the typical attitude of recent frames against the one at the start of the map.
 TEST(GroundAttitude, MountThatMovedWarnsBumpsDoNot) {
   const sgd::GroundAttitudeEstimator ga;

@@ -86,6 +86,8 @@ struct StereoEstimatorOptions {
   /// `plane` (the sparse matches' ground plane of the start-up, or a relocalization's) near the
   /// nominal attitude: tilted at most nominal_max_tilt_rad from the ground it expects.
   DisparityPlaneFitOptions nearNominalAttitude(const DisparityPlaneFitOptions& plane) const;
+  /// The ground's down direction (the ground frame's -z) in the camera at the nominal mount.
+  Eigen::Vector3d nominalDown() const;
   /// `aligner` with the working range (min_range_m, max_range_m, max_lateral_m) filled in.
   SurfaceAlignerOptions alignerOptions() const;
   bool isValid(std::string* why) const;
@@ -204,6 +206,9 @@ class StereoEstimator {
   int pyramidLevels() const;
 
  private:
+  /// checkPair at the monitor's level, optionally along per-row disparities of that level.
+  StereoPairCheck checkPairAtMatchLevel(const ImagePyramid& left, const ImagePyramid& right,
+                                        const std::vector<float>* row_disparity) const;
   StereoResult estimateWith(const ImagePyramid& left, const ImagePyramid& right, const VerticalMisalignment& m,
                             const Eigen::Isometry3d* start) const;
 

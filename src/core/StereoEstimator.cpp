@@ -52,11 +52,13 @@ bool StereoEstimatorOptions::isValid(std::string* why) const {
   return true;
 }
 
+Eigen::Vector3d StereoEstimatorOptions::nominalDown() const {
+  return StereoEstimator::nominalCameraPose(1.0, nominal_pitch_down_rad, nominal_roll_rad).linear() *
+         -Eigen::Vector3d::UnitZ();
+}
+
 DisparityPlaneFitOptions StereoEstimatorOptions::nearNominalAttitude(const DisparityPlaneFitOptions& plane) const {
-  // the ground's down direction (G's -z) in the nominal camera frame
-  const Eigen::Vector3d down =
-      StereoEstimator::nominalCameraPose(1.0, nominal_pitch_down_rad, nominal_roll_rad).linear() * -Eigen::Vector3d::UnitZ();
-  return nominal_max_tilt_rad > 0.0 ? plane.nearAttitude(down, nominal_max_tilt_rad) : plane;
+  return nominal_max_tilt_rad > 0.0 ? plane.nearAttitude(nominalDown(), nominal_max_tilt_rad) : plane;
 }
 
 StereoEstimator::StereoEstimator(const StereoRig& rig, const StereoEstimatorOptions& options)
@@ -425,22 +427,23 @@ VerticalMisalignment StereoEstimator::modelled(const VerticalMisalignment& m) co
   return m;
 }
 
-StereoPairCheck StereoEstimator::checkPair(const ImagePyramid& left, const ImagePyramid& right) const {
+StereoPairCheck StereoEstimator::checkPairAtMatchLevel(const ImagePyramid& left, const ImagePyramid& right,
+                                                       const std::vector<float>* row_disparity) const {
   const int l = std::min(options_.rectification.match_level, left.levels() - 1);
   RectificationMonitorOptions o = options_.rectification;
   o.match_level = l;
-  return RectificationMonitor(o).measure(left.level(l).image, right.level(l).image, rig_);
+  return RectificationMonitor(o).measure(left.level(l).image, right.level(l).image, rig_, row_disparity);
+}
+
+StereoPairCheck StereoEstimator::checkPair(const ImagePyramid& left, const ImagePyramid& right) const {
+  return checkPairAtMatchLevel(left, right, nullptr);
 }
 
 StereoPairCheck StereoEstimator::checkPairAlongNominalGround(const ImagePyramid& left, const ImagePyramid& right) const {
   const int l = std::min(options_.rectification.match_level, left.levels() - 1);
-  RectificationMonitorOptions o = options_.rectification;
-  o.match_level = l;
   // The nominal ground n . X = h in the camera (n its down direction): at pixel (u, v) the
   // disparity is fx * baseline * n . K^-1 (u, v, 1) / h, taken at the principal column.
-  const Eigen::Isometry3d camera_T_ground =
-      nominalCameraPose(options_.nominal_height_m, options_.nominal_pitch_down_rad, options_.nominal_roll_rad);
-  const Eigen::Vector3d down = camera_T_ground.linear() * -Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d down = options_.nominalDown();
   const double scale = std::ldexp(1.0, l);
   const int rows = left.level(l).image.rows;
   std::vector<float> row_disparity(static_cast<size_t>(rows), 0.0f);
@@ -450,7 +453,7 @@ StereoPairCheck StereoEstimator::checkPairAlongNominalGround(const ImagePyramid&
     const double d0 = rig_.fx * rig_.baseline_m * n_ray / options_.nominal_height_m;
     row_disparity[static_cast<size_t>(v)] = static_cast<float>(std::max(0.0, d0) / scale);
   }
-  return RectificationMonitor(o).measure(left.level(l).image, right.level(l).image, rig_, &row_disparity);
+  return checkPairAtMatchLevel(left, right, &row_disparity);
 }
 
 ObstacleMask StereoEstimator::detectObstacles(const ImagePyramid& left, const ImagePyramid& right,
