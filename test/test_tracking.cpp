@@ -61,6 +61,23 @@ TEST(MotionPredictor, ConstantVelocityScalesWithTheStampGap) {
   EXPECT_TRUE(d.p.coast(10.7).isApprox(d.pose1, 1e-12));
 }
 
+// A state continued on another clock: the step after it took an unknown time and measures no
+// velocity; the step after that does.
+TEST(MotionPredictor, AStepFromAGuessedStampMeasuresNoVelocity) {
+  Drive d;
+  d.p.restore(d.pose1, 10.1, Vector6d::Zero(), 0.0, false);
+  d.p.distrustLastStamp();
+  const Eigen::Isometry3d back = Se3::exp(-12.0 * d.step_per_frame) * d.pose1;  // 12 frames back
+  d.p.update(back, 10.2);
+  EXPECT_FALSE(d.p.velocityKnown());
+  EXPECT_TRUE(d.p.predict(10.3).isApprox(back, 1e-12));
+  EXPECT_TRUE(d.p.coast(10.3).isApprox(back, 1e-12));
+  const Eigen::Isometry3d next = Se3::exp(d.step_per_frame) * back;
+  d.p.update(next, 10.3);
+  EXPECT_TRUE(d.p.velocityKnown());
+  EXPECT_NEAR((between(next, d.p.predict(10.4)) - d.step_per_frame).norm(), 0.0, 1e-9);
+}
+
 TEST(MotionPredictor, HypothesesCoverTurnsAttitudeStepsAndSpeedChanges) {
   Drive d;
   const std::vector<Eigen::Isometry3d> h = d.p.hypotheses(10.2);

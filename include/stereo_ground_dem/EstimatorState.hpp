@@ -62,7 +62,11 @@ struct EstimatorState {
     velocity = Vector6d::Zero();
     velocity_gap_s = 0.0;
     velocity_known = false;
+    clock_rebased = true;
   }
+  /// Set by rebaseClock() (not saved): the first step after it measures no velocity
+  /// (MotionPredictor::distrustLastStamp).
+  bool clock_rebased = false;
 };
 
 }  // namespace stereo_ground_dem

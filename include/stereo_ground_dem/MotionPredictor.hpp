@@ -67,6 +67,11 @@ class MotionPredictor {
   /// velocityKnown() (a saved map continued in another run).
   void restore(const Eigen::Isometry3d& camera_T_ground, double stamp_s, const Vector6d& velocity, double gap_s,
                bool velocity_known);
+  /// The last stamp is a guess (a state continued on another clock: EstimatorState::rebaseClock),
+  /// so the step to the next pose took an unknown time: the next update() places that pose without
+  /// measuring a velocity (as setPose()), the one after it measures one again. A sequence resumed
+  /// one frame earlier than its saved state took the step back as -12 m/s.
+  void distrustLastStamp() { last_stamp_trusted_ = false; }
 
   bool velocityKnown() const { return velocity_known_; }
   const Vector6d& velocity() const { return velocity_; }  ///< twist per second, camera frame
@@ -94,6 +99,7 @@ class MotionPredictor {
   Vector6d velocity_ = Vector6d::Zero();
   double last_gap_s_ = 0.0;  ///< the stamp gap the velocity was measured over [s]
   bool velocity_known_ = false;
+  bool last_stamp_trusted_ = true;  ///< false: the next update() measures no velocity
 };
 
 }  // namespace stereo_ground_dem

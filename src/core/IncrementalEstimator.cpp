@@ -235,6 +235,7 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
   ground_T_camera0_ = s.ground_T_camera0;
   ground_T_camera_ = s.ground_T_camera;
   predictor_.restore(s.last_camera_T_ground, s.last_stamp_s, s.velocity, s.velocity_gap_s, s.velocity_known);
+  if (s.clock_rebased) predictor_.distrustLastStamp();
   residual_level_ = s.residual_level_grey;
   temporal_residual_level_ = s.temporal_residual_level_grey;
   prealign_level_ = s.prealign_level;

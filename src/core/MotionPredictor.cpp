@@ -35,6 +35,7 @@ void MotionPredictor::reset() {
   velocity_.setZero();
   last_gap_s_ = 0.0;
   velocity_known_ = false;
+  last_stamp_trusted_ = true;
 }
 
 void MotionPredictor::setPose(const Eigen::Isometry3d& camera_T_ground, double stamp_s) {
@@ -43,6 +44,7 @@ void MotionPredictor::setPose(const Eigen::Isometry3d& camera_T_ground, double s
   velocity_.setZero();
   last_gap_s_ = 0.0;
   velocity_known_ = false;
+  last_stamp_trusted_ = true;
 }
 
 void MotionPredictor::restore(const Eigen::Isometry3d& camera_T_ground, double stamp_s, const Vector6d& velocity,
@@ -52,9 +54,14 @@ void MotionPredictor::restore(const Eigen::Isometry3d& camera_T_ground, double s
   velocity_ = velocity;
   last_gap_s_ = gap_s;
   velocity_known_ = velocity_known;
+  last_stamp_trusted_ = true;
 }
 
 void MotionPredictor::update(const Eigen::Isometry3d& camera_T_ground, double stamp_s) {
+  if (!last_stamp_trusted_) {
+    setPose(camera_T_ground, stamp_s);
+    return;
+  }
   const double dt = gap(stamp_s);
   velocity_ = Se3::log(camera_T_ground * last_camera_T_ground_.inverse()) / dt;
   velocity_known_ = true;
