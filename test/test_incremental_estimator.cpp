@@ -331,6 +331,8 @@ TEST(IncrementalEstimator, AMapContinuedFromItsSavedStateEqualsOneRun) {
   EXPECT_EQ(back.next_sequence_frame, half);
   EXPECT_GT(saved.estimator.temporal_residual_level_grey, 0.5);  // the tracking check's level of the temporal pair
   EXPECT_EQ(back.estimator.temporal_residual_level_grey, saved.estimator.temporal_residual_level_grey);
+  EXPECT_GT(saved.estimator.observed_level_vertices, 100.0);  // ... and of the ground vertices observed
+  EXPECT_EQ(back.estimator.observed_level_vertices, saved.estimator.observed_level_vertices);
   second->est.restore(back.estimator);
   EXPECT_TRUE(second->est.initialized());
   process(second.get(), half, n);

@@ -224,8 +224,21 @@ TEST(TrackingCheck, EachReasonAtItsThreshold) {
   e.usual_temporal_residual_grey = 2.0;
   e.temporal_residual_grey = std::numeric_limits<double>::quiet_NaN();  // not measured
   EXPECT_EQ(check.failure(e), "");
+  // The ground support: fewer observed vertices than 0.2 of the usual number
+  e = ok;
+  e.usual_observed_vertices = 2000.0;  // limit 400
+  e.observed_vertices = 401;
+  EXPECT_EQ(check.failure(e), "");
+  e.observed_vertices = 399;
+  EXPECT_EQ(check.failure(e), "the ground support collapsed: 399 vertices observed (usual 2000)");
+  e.observed_vertices = 0;
+  e.usual_observed_vertices = 0.0;  // no level yet
+  EXPECT_EQ(check.failure(e), "");
   TrackingCheckOptions bad;
   bad.max_residual_ratio = 1.0;
+  EXPECT_THROW(TrackingCheck{bad}, std::invalid_argument);
+  bad = TrackingCheckOptions();
+  bad.min_observed_fraction = 1.0;
   EXPECT_THROW(TrackingCheck{bad}, std::invalid_argument);
 }
 

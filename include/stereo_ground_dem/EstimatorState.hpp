@@ -32,6 +32,7 @@ struct EstimatorState {
   double residual_level_grey = 0.0;
   double temporal_residual_level_grey = 0.0;  ///< ... of the temporal pair (0: unknown)
   double prealign_level = 0.0;
+  double observed_level_vertices = 0.0;  ///< ... of the ground vertices observed per frame (0: unknown)
   std::array<PhotometricParams, 3> last_photometric;
   int consecutive_failures = 0;
   int failures_total = 0;

@@ -9,8 +9,9 @@
 /// constant-velocity prediction (scaled by the time since the last good frame, so dropped frames
 /// are bridged), take known heights from the map (unknown ones by extending the surface with a
 /// plane fitted to the known ones) and use the map as a prior. A frame whose estimate is
-/// implausible is not fused; after `reinit_after_failures` failures in a row the surface is
-/// re-initialised from the stereo pair alone at the predicted pose.
+/// implausible is not fused; after `reinit_after_failures` failures in a row the frame is tracked
+/// against the map from the stereo pair's attitude at the predicted pose (re-localization), or,
+/// when that fails too, the surface is re-initialised from the stereo pair alone there.
 
 #include <array>
 #include <limits>
@@ -86,6 +87,11 @@ struct IncrementalEstimatorOptions {
   /// Ground rising out of the surface, which the obstacle test took for upright (an embankment)
   RisingGroundSeedsOptions rising_seeds;
   int reinit_after_failures = 3;          ///< consecutive failures before re-initialisation
+  /// At re-initialisation, track the frame first from the stereo pair's pose (its height, pitch
+  /// and roll from the ground in view, x, y and heading coasted) against the map and the last
+  /// tracked frame's images, so that the map gives the heading and position; the stereo pair's
+  /// surface is fused only when that fails the tracking check.
+  bool relocalize_against_map = true;
   int prealign_level = 3;                 ///< pyramid level of the motion-only pre-alignment
   int prealign_iterations = 8;            ///< its Gauss-Newton iterations (0: none)
   int prealign_refine_iterations = 8;     ///< then at the next finer level when the motion surprised (0: never)
@@ -165,7 +171,7 @@ struct IncrementalEstimatorOptions {
 enum class FrameStatus {
   kInitialized,      ///< stereo mode; defined the ground frame
   kTracked,          ///< estimated and fused
-  kRecovered,        ///< re-initialised from the stereo pair at the predicted pose, fused
+  kRecovered,        ///< after failures: re-localized against the map, or re-initialised from the stereo pair; fused
   kFailed,           ///< estimate implausible: pose predicted, map untouched
   kRejectedInput,    ///< bad images: nothing estimated, map untouched
 };
@@ -277,8 +283,10 @@ class IncrementalEstimator {
  private:
   std::string checkImages(const ImagePyramid& left, const ImagePyramid& right) const;
   Eigen::Isometry3d predict(double stamp_s) const;
+  /// A tracked frame; `relocalize_start` (camera_T_ground), when given, is its only starting pose
+  /// (re-localization: the velocity is not known).
   FrameResult& trackFrame(double stamp_s, FrameResult* res, std::unique_ptr<ImagePyramid>& pl,
-                          std::unique_ptr<ImagePyramid>& pr);
+                          std::unique_ptr<ImagePyramid>& pr, const Eigen::Isometry3d* relocalize_start = nullptr);
   /// Step 3 of a tracked frame: the joint levels, coarse to fine, from the pre-aligned `state`,
   /// with the temporal-consistency test after the first level with motion (its moving texture
   /// joins `temporal_skipped`, returned in `moving`). Returns the finest level's report.
@@ -317,6 +325,7 @@ class IncrementalEstimator {
   TrackingCheck check_;
   SkylineMask skyline_;
   double residual_level_ = 0.0;  ///< running median |residual| of good frames [grey]
+  double observed_level_ = 0.0;  ///< running number of ground vertices they observed
   double temporal_residual_level_ = 0.0;  ///< ... of their temporal pair (FrameResult::temporal_residual_grey)
   double prealign_level_ = 0.0;  ///< running pre-alignment cost per sample of good frames
   std::unique_ptr<ImagePyramid> prev_left_, prev_right_;

@@ -136,7 +136,7 @@ void IncrementalEstimator::reset() {
   map_.clear();
   initialized_ = false;
   predictor_.reset();
-  residual_level_ = prealign_level_ = temporal_residual_level_ = 0.0;
+  residual_level_ = prealign_level_ = temporal_residual_level_ = observed_level_ = 0.0;
   prev_left_.reset();
   prev_right_.reset();
   prev_obstacles_.clear();
@@ -159,6 +159,7 @@ EstimatorState IncrementalEstimator::state() const {
   s.velocity_known = predictor_.velocityKnown();
   s.residual_level_grey = residual_level_;
   s.temporal_residual_level_grey = temporal_residual_level_;
+  s.observed_level_vertices = observed_level_;
   s.prealign_level = prealign_level_;
   s.last_photometric = last_photometric_;
   s.consecutive_failures = consecutive_failures_;
@@ -185,7 +186,7 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
   if (!finite(s.ground_T_camera0) || !finite(s.ground_T_camera) || !finite(s.last_camera_T_ground) ||
       !s.velocity.allFinite() || !std::isfinite(s.last_stamp_s) || !std::isfinite(s.velocity_gap_s) ||
       !std::isfinite(s.residual_level_grey) || !std::isfinite(s.prealign_level) ||
-      !std::isfinite(s.temporal_residual_level_grey))
+      !std::isfinite(s.temporal_residual_level_grey) || !std::isfinite(s.observed_level_vertices))
     fail("a pose, the velocity, the stamp or a residual level is not finite");
   if (s.frame_counter < 0 || s.consecutive_failures < 0 || s.rectification_pairs < 0) fail("negative counter");
   const auto checkImage = [&](const cv::Mat& m, const char* name) {
@@ -238,6 +239,7 @@ void IncrementalEstimator::restore(const EstimatorState& s) {
   if (s.clock_rebased) predictor_.distrustLastStamp();
   residual_level_ = s.residual_level_grey;
   temporal_residual_level_ = s.temporal_residual_level_grey;
+  observed_level_ = s.observed_level_vertices;
   prealign_level_ = s.prealign_level;
   last_photometric_ = s.last_photometric;
   consecutive_failures_ = s.consecutive_failures;
@@ -404,6 +406,7 @@ FrameResult IncrementalEstimator::processFrame(const cv::Mat& left, const cv::Ma
     predictor_.setPose(sr.ground_T_camera.inverse(), stamp_s);
     residual_level_ = sr.median_abs_residual_grey;
     prealign_level_ = temporal_residual_level_ = 0.0;
+    observed_level_ = res.fused_vertices;
     prev_obstacles_ = sr.obstacles.excluded;
     prev_moving_.clear();
     carried_moving_.clear();
@@ -436,7 +439,8 @@ int IncrementalEstimator::effectiveTemporalFinestLevel(int image_width_px) const
 }
 
 FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, std::unique_ptr<ImagePyramid>& pl,
-                                              std::unique_ptr<ImagePyramid>& pr) {
+                                              std::unique_ptr<ImagePyramid>& pr,
+                                              const Eigen::Isometry3d* relocalize_start) {
   FrameResult& res = *out;
   const StereoEstimatorOptions& so = options_.stereo;
   const double dt = predictor_.gap(stamp_s);
@@ -459,7 +463,9 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   PrealignRequest request;
   request.left = pl.get();
   request.right = pr.get();
-  if (predictor_.velocityKnown()) {
+  if (relocalize_start) {
+    request.starts = {*relocalize_start};
+  } else if (predictor_.velocityKnown()) {
     request.starts = predictor_.hypotheses(stamp_s);
   } else {
     request.starts = search.rankedStarts(*pl, stamp_s, temporal_skipped);
@@ -605,6 +611,8 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   // the level is learnt at about the last tracked step's gap (none yet: the nominal frame period)
   const double usual_gap_s = predictor_.lastGap() > 0.0 ? predictor_.lastGap() : options_.nominal_frame_period_s;
   ev.temporal_gap_ratio = std::max(1.0, dt / usual_gap_s);
+  ev.observed_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
+  ev.usual_observed_vertices = observed_level_;
   const std::string failure = check_.failure(ev);
   if (!failure.empty()) {
     ++consecutive_failures_;
@@ -651,6 +659,7 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   if (std::isfinite(res.prealign_cost)) {
     prealign_level_ = prealign_level_ > 0.0 ? 0.8 * prealign_level_ + 0.2 * res.prealign_cost : res.prealign_cost;
   }
+  observed_level_ = observed_level_ > 0.0 ? 0.8 * observed_level_ + 0.2 * ev.observed_vertices : ev.observed_vertices;
   residual_level_ = residual_level_ > 0.0 ? 0.8 * residual_level_ + 0.2 * last.median_abs_residual_grey
                                           : last.median_abs_residual_grey;
   if (res.temporal_residual_grey > 0.0) {  // 0: not measured
@@ -911,6 +920,26 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   Eigen::Isometry3d anchored;
   if (mapView().groundAnchoredPose(sr.pair_check, predicted, &anchored)) g_T_local = anchored.inverse() * sr.ground_T_camera.inverse();
   const Eigen::Isometry3d ground_T_camera = g_T_local * sr.ground_T_camera;
+  const int failures = consecutive_failures_;
+  std::string relocalization;
+  if (options_.relocalize_against_map && prev_left_ && prev_right_) {
+    // Re-localization: the frame tracked from that pose against the map and the last tracked
+    // frame's images (still held: failures do not advance), as any other; on success it is the result.
+    const FrameResult before = res;
+    const int failures_total = failures_total_;
+    const Eigen::Isometry3d start = ground_T_camera.inverse();
+    trackFrame(stamp_s, &res, pl, pr, &start);
+    if (res.status == FrameStatus::kTracked) {
+      ++recoveries_;
+      res.status = FrameStatus::kRecovered;
+      res.message = "re-localized against the map after " + std::to_string(failures) + " failures";
+      return res;
+    }
+    relocalization = res.message;
+    res = before;
+    consecutive_failures_ = failures;
+    failures_total_ = failures_total;
+  }
   // Resample the stereo surface on the map's lattice.
   const GroundGrid window = viewWindow(ground_T_camera.inverse());
   Eigen::VectorXd heights(window.vertexCount()), data_info = Eigen::VectorXd::Zero(window.vertexCount());
@@ -934,9 +963,11 @@ FrameResult& IncrementalEstimator::recoverFrame(const ImagePyramid& left, const 
   res.median_abs_residual_grey = sr.median_abs_residual_grey;
   ++recoveries_;
   res.status = FrameStatus::kRecovered;
-  res.message = "re-initialized from the stereo pair after " + std::to_string(consecutive_failures_) + " failures";
+  res.message = "re-initialized from the stereo pair after " + std::to_string(failures) + " failures";
+  if (!relocalization.empty()) res.message += " (re-localization against the map: " + relocalization + ")";
   predictor_.setPose(ground_T_camera.inverse(), stamp_s);
   residual_level_ = sr.median_abs_residual_grey;
+  observed_level_ = res.fused_vertices;
   temporal_residual_level_ = 0.0;  // the scene may have changed since the failures: learnt again
   prev_obstacles_ = sr.obstacles.excluded;
   prev_moving_.clear();

@@ -130,7 +130,11 @@ ParameterTable::ParameterTable(PipelineOptions* o) {
   d("max_turn_rate_rad_per_s", &e.check.max_turn_rate_rad_per_s, "faster estimated rotation is a failure [rad/s]", true);
   d("max_height_jump_m", &e.check.max_height_jump_m, "well-known vertices moving this far are implausible [m]", true);
   d("max_jump_fraction", &e.check.max_jump_fraction, "... for more than this fraction of them", true);
+  d("min_observed_fraction", &e.check.min_observed_fraction,
+    "fewer ground vertices observed than this fraction of the usual number: the ground support collapsed, failure", true);
   i("reinit_after_failures", &e.reinit_after_failures, "consecutive failures before re-initialization", true);
+  b("relocalize_against_map", &e.relocalize_against_map,
+    "at re-initialization, track the frame from the stereo pair's attitude against the map and the last tracked images first (the map gives heading and position); the stereo pair's surface is fused only when that fails", true);
   i("prealign_level", &e.prealign_level, "pyramid level of the motion-only pre-alignment", true);
   b("temporal_checkerboard", &e.temporal_checkerboard, "temporal pairs use every other pixel (faster)", true);
   b("exclude_previous_obstacles", &e.exclude_previous_obstacles,

@@ -18,6 +18,7 @@ bool TrackingCheckOptions::isValid(std::string* why) const {
     return bad("max_residual_ratio must exceed 1 and max_residual_increase_grey be > 0");
   }
   if (min_samples < 0) return bad("min_samples must be >= 0");
+  if (!(min_observed_fraction >= 0.0 && min_observed_fraction < 1.0)) return bad("min_observed_fraction must be in [0, 1)");
   return true;
 }
 
@@ -54,6 +55,9 @@ std::string TrackingCheck::failure(const TrackingEvidence& e) const {
         << " grey (usual " << e.usual_temporal_residual_grey;
     if (e.temporal_gap_ratio >= 1.1) why << ", over " << e.temporal_gap_ratio << "x the usual stamp gap";
     why << ")";
+  } else if (e.usual_observed_vertices > 0.0 && e.observed_vertices < o.min_observed_fraction * e.usual_observed_vertices) {
+    why << "the ground support collapsed: " << e.observed_vertices << " vertices observed (usual "
+        << static_cast<int>(std::lround(e.usual_observed_vertices)) << ")";
   }
   return why.str();
 }

@@ -136,6 +136,7 @@ void MapStateFile::write(const std::string& directory, const SavedMapState& stat
   fsw << "velocity_gap_s" << s.velocity_gap_s << "velocity_known" << static_cast<int>(s.velocity_known);
   fsw << "residual_level_grey" << s.residual_level_grey << "prealign_level" << s.prealign_level;
   fsw << "temporal_residual_level_grey" << s.temporal_residual_level_grey;
+  fsw << "observed_level_vertices" << s.observed_level_vertices;
   Eigen::Matrix<double, 3, 2> photometric;
   for (int j = 0; j < 3; ++j) photometric.row(j) << s.last_photometric[j].gain, s.last_photometric[j].bias_grey;
   fsw << "last_photometric" << toMat(photometric);
@@ -205,6 +206,7 @@ SavedMapState MapStateFile::read(const std::string& directory, ElevationMap* map
     s.prealign_level = f["prealign_level"];
     // absent from maps saved before 2026-12-07: unknown, learnt again from the next good frames
     if (!f["temporal_residual_level_grey"].empty()) s.temporal_residual_level_grey = f["temporal_residual_level_grey"];
+    if (!f["observed_level_vertices"].empty()) s.observed_level_vertices = f["observed_level_vertices"];  // (2026-12-08)
     m = readMatrix(f["last_photometric"]);
     if (m.rows != 3 || m.cols != 2) throw std::runtime_error("last_photometric is not 3x2");
     for (int j = 0; j < 3; ++j) s.last_photometric[static_cast<size_t>(j)] = {m.at<double>(j, 0), m.at<double>(j, 1)};
