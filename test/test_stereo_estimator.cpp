@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <map>
 
+#include <opencv2/core.hpp>
+
 #include "stereo_ground_dem/StereoEstimator.hpp"
 #include "stereo_ground_dem/sim/SequenceGenerator.hpp"
 #include "stereo_ground_dem/sim/StereoRenderer.hpp"
@@ -207,6 +209,30 @@ TEST(StereoEstimator, RejectsBadInputWithAMessage) {
   StereoEstimatorOptions bad;
   bad.grid_resolution_m = -1.0;
   EXPECT_THROW(StereoEstimator(rig, bad), std::invalid_argument);
+}
+
+// The ground a pair shows near the mounted attitude: what a frame placed without a velocity after
+// a failure must show (IncrementalEstimator: "no ground in view near the mounted attitude"). The
+// same pair turned upside down (rotated 180 deg, left and right swapped: positive disparities, the
+// ground in the upper half) holds a plane too, but tilted 180 deg from the mount.
+TEST(StereoEstimator, GroundPlaneNearTheMountOnlyTheRightWayUp) {
+  const Case c = render(sim::SceneKind::kFlatRoad);
+  const StereoEstimator est(c.rig, StereoEstimatorOptions());
+  const ImagePyramid l = est.makePyramid(c.pair.left.image), r = est.makePyramid(c.pair.right.image);
+  const DisparityPlane upright = est.groundPlane(l, r, est.checkPair(l, r));
+  ASSERT_TRUE(upright.ok) << upright.message;
+  std::printf("upright: height %.4f m, %d inliers, rms %.3f px\n", upright.height_m, upright.inliers, upright.rms_px);
+  EXPECT_NEAR(upright.height_m, 1.65, 0.005);  // measured 1.6502 m, 672 inliers
+  cv::Mat tl, tr;
+  cv::rotate(c.pair.right.image, tl, cv::ROTATE_180);
+  cv::rotate(c.pair.left.image, tr, cv::ROTATE_180);
+  const ImagePyramid ul = est.makePyramid(tl), ur = est.makePyramid(tr);
+  const StereoPairCheck turned = est.checkPair(ul, ur);
+  std::printf("upside down: %zu matches\n", turned.points.size());
+  EXPECT_GT(turned.points.size(), 320u);  // matched as well, a consistent pair: measured 646
+  const DisparityPlane over = est.groundPlane(ul, ur, turned);
+  EXPECT_FALSE(over.ok) << "height " << over.height_m;
+  EXPECT_FALSE(over.message.empty());
 }
 
 TEST(PhotometricParams, InverseCompositionalUpdate) {

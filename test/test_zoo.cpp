@@ -285,7 +285,8 @@ INSTANTIATE_TEST_SUITE_P(Zoo, LowCameraDitch,
 // Tracking lost for three frames (scripts/make_lost_stretch.py: frames 12-14 replaced by their own
 // pair upside down, a consistent stereo pair of a world the map does not hold). Those frames must
 // fail and fuse nothing: before the ground-support check (min_observed_fraction) the second of
-// them was tracked with 0 of ~2,000 vertices observed and every scene ended 4-51 m off. Frame 15
+// them was tracked with 0 of ~2,000 vertices observed and every scene ended 4-51 m off (the rolling
+// scene still does: its upside-down hills look like ground, docs/results.md). Frame 15
 // is then re-localized: tracked against the map and frame 11's images from the stereo pair's
 // attitude (relocalize_against_map); the stereo pair's own re-initialization took the coasted
 // heading and ended 2.04 deg off on off-road, 0.52 deg on the sag.
@@ -304,7 +305,12 @@ TEST_P(LostStretch, ForeignFramesFailAndTheMapRelocalizes) {
   const std::vector<std::string> rows = frameRows();
   ASSERT_EQ(rows.size(), static_cast<size_t>(l.frames));
   for (int k = 12; k <= 14; ++k) EXPECT_NE(rows[static_cast<size_t>(k)].find(",failed,"), std::string::npos) << rows[static_cast<size_t>(k)];
-  EXPECT_NE(rows[14].find("the ground support collapsed: 0 vertices observed"), std::string::npos) << rows[14];
+  // The first foreign frame (the velocity still known) fails the tracking check (sag: the ground
+  // support, 49 of ~3,700 vertices observed; off-road: the temporal pair); the next ones are placed
+  // without a velocity and must first show ground near the mounted attitude.
+  for (int k = 13; k <= 14; ++k)
+    EXPECT_NE(rows[static_cast<size_t>(k)].find("no ground in view near the mounted attitude"), std::string::npos)
+        << rows[static_cast<size_t>(k)];
   EXPECT_NE(rows[15].find(",recovered,"), std::string::npos) << rows[15];
   EXPECT_NE(rows[15].find("re-localized against the map after 3 failures"), std::string::npos) << rows[15];
   expectWithin(l, f, 3);

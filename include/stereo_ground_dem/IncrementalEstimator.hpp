@@ -304,6 +304,9 @@ class IncrementalEstimator {
                                         int* well_known, int* jumps) const;
   FrameResult& recoverFrame(const ImagePyramid& left, const ImagePyramid& right, double stamp_s, FrameResult* res,
                             std::unique_ptr<ImagePyramid>& pl, std::unique_ptr<ImagePyramid>& pr);
+  /// A failed frame: counted, never fused; its pose coasts at the last velocity, which the next
+  /// frames no longer trust.
+  FrameResult& failFrame(double stamp_s, const std::string& why, FrameResult* res);
   void advance(const Eigen::Isometry3d& ground_T_camera, double stamp_s, std::unique_ptr<ImagePyramid>& pl,
                std::unique_ptr<ImagePyramid>& pr, const std::vector<PhotometricParams>& photometric);
   bool rectificationDue(int frame_index) const;

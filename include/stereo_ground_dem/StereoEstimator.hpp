@@ -185,6 +185,11 @@ class StereoEstimator {
   /// expects (RectificationMonitor::measure's row_disparity): the start-up's second try when the
   /// matches hold no ground plane.
   StereoPairCheck checkPairAlongNominalGround(const ImagePyramid& left, const ImagePyramid& right) const;
+  /// The ground plane of `check`'s matches (checkPair's of this pair) near the mounted attitude
+  /// (nominal_max_tilt_rad); when they hold none, of the matches along the nominal ground. `used`
+  /// (optional) gets the matches it came from; not ok: no ground in view (the plane's message).
+  DisparityPlane groundPlane(const ImagePyramid& left, const ImagePyramid& right, const StereoPairCheck& check,
+                             StereoPairCheck* used = nullptr) const;
 
 
   /// The misalignment to model from now on (the incremental mode's running estimate); until it is

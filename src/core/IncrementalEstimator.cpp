@@ -468,9 +468,16 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   } else if (predictor_.velocityKnown()) {
     request.starts = predictor_.hypotheses(stamp_s);
   } else {
+    const StereoPairCheck pair = stereo_.checkPair(*pl, *pr);
+    if (consecutive_failures_ > 0) {
+      // Placed without a velocity after a failure: the pair must show ground near the mounted
+      // attitude (not the sky, not a pair turned over), or the search may fit it anywhere.
+      const DisparityPlane ground = stereo_.groundPlane(*pl, *pr, pair);
+      if (!ground.ok) return failFrame(stamp_s, "no ground in view near the mounted attitude: " + ground.message, &res);
+    }
     request.starts = search.rankedStarts(*pl, stamp_s, temporal_skipped);
     Eigen::Isometry3d anchored;
-    if (view.groundAnchoredPose(stereo_.checkPair(*pl, *pr), request.starts.front(), &anchored)) {
+    if (view.groundAnchoredPose(pair, request.starts.front(), &anchored)) {
       request.starts.insert(request.starts.begin() + 1, anchored);
       request.anchored_index = 1;
     }
@@ -613,24 +620,17 @@ FrameResult& IncrementalEstimator::trackFrame(double stamp_s, FrameResult* out, 
   ev.temporal_gap_ratio = std::max(1.0, dt / usual_gap_s);
   ev.observed_vertices = static_cast<int>(std::count(update.begin(), update.end(), 1));
   ev.usual_observed_vertices = observed_level_;
-  const std::string failure = check_.failure(ev);
+  std::string failure = check_.failure(ev);
   if (!failure.empty()) {
-    ++consecutive_failures_;
-    ++failures_total_;
-    predictor_.forgetVelocity();
-    res.status = FrameStatus::kFailed;
-    res.message = failure;
     if (!std::isfinite(res.prealign_cost)) {
       // what the pre-alignment found: the joint levels started from the prediction
-      res.message += res.prealign_rejected ? " (the pre-alignment moved beyond the acceleration bound)"
-                     : res.prealign_discarded > 0
-                         ? " (no pre-alignment start aligned within the acceleration bound: " +
-                               std::to_string(res.prealign_discarded) + " ended beyond it)"
-                         : " (no pre-alignment start aligned)";
+      failure += res.prealign_rejected ? " (the pre-alignment moved beyond the acceleration bound)"
+                 : res.prealign_discarded > 0
+                     ? " (no pre-alignment start aligned within the acceleration bound: " +
+                           std::to_string(res.prealign_discarded) + " ended beyond it)"
+                     : " (no pre-alignment start aligned)";
     }
-    // the pose moves on at the last velocity (without one, `predicted` is the search's best start)
-    res.ground_T_camera = predictor_.coast(stamp_s).inverse();
-    return res;
+    return failFrame(stamp_s, failure, &res);
   }
 
   // ---- 5. fuse, advance
@@ -858,6 +858,17 @@ std::vector<uint8_t> IncrementalEstimator::observedVertices(const GroundGrid& wi
     }
   }
   return update;
+}
+
+FrameResult& IncrementalEstimator::failFrame(double stamp_s, const std::string& why, FrameResult* out) {
+  ++consecutive_failures_;
+  ++failures_total_;
+  predictor_.forgetVelocity();
+  out->status = FrameStatus::kFailed;
+  out->message = why;
+  // the pose moves on at the last velocity (the estimate is not trusted)
+  out->ground_T_camera = predictor_.coast(stamp_s).inverse();
+  return *out;
 }
 
 void IncrementalEstimator::advance(const Eigen::Isometry3d& ground_T_camera, double stamp_s,

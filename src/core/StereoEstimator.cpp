@@ -284,27 +284,33 @@ StereoResult StereoEstimator::estimate(const ImagePyramid& left, const ImagePyra
     res.message = check.problem;
     return res;
   }
-  const DisparityPlaneFit plane_fit(o.nearNominalAttitude(o.ground_plane));
-  DisparityPlane plane = plane_fit.fit(check.points, rig_);
-  StereoPairCheck used = check;
+  StereoPairCheck used;
+  const DisparityPlane plane = groundPlane(left, right, check, &used);
   if (!plane.ok) {
-    // Matched again along the ground the mount expects: from a low camera the near ground's
-    // disparity changes too fast per row for the plain windows (docs/results.md, "A low camera's
-    // start-up matches").
-    const StereoPairCheck along = checkPairAlongNominalGround(left, right);
-    const DisparityPlane second = along.ok() ? plane_fit.fit(along.points, rig_) : DisparityPlane();
-    if (!second.ok) {
-      res.pair_check = check;
-      res.message = "no ground in view: " + plane.message;
-      return res;
-    }
-    plane = second;
-    used = along;
+    res.pair_check = check;
+    res.message = "no ground in view: " + plane.message;
+    return res;
   }
   const Eigen::Isometry3d start = poseAbovePlane(plane.down, plane.height_m);
   StereoResult res2 = estimateWith(left, right, modelled(rectification_set_ ? rectification_ : used.fit), &start);
   res2.pair_check = used;
   return res2;
+}
+
+DisparityPlane StereoEstimator::groundPlane(const ImagePyramid& left, const ImagePyramid& right,
+                                            const StereoPairCheck& check, StereoPairCheck* used) const {
+  const DisparityPlaneFit plane_fit(options_.nearNominalAttitude(options_.ground_plane));
+  const DisparityPlane plane = plane_fit.fit(check.points, rig_);
+  if (used) *used = check;
+  if (plane.ok) return plane;
+  // Matched again along the ground the mount expects: from a low camera the near ground's
+  // disparity changes too fast per row for the plain windows (docs/results.md, "A low camera's
+  // start-up matches").
+  const StereoPairCheck along = checkPairAlongNominalGround(left, right);
+  DisparityPlane second = along.ok() ? plane_fit.fit(along.points, rig_) : DisparityPlane();
+  if (!second.ok) return plane;  // (the first try's message)
+  if (used) *used = along;
+  return second;
 }
 
 Eigen::Isometry3d StereoEstimator::poseAbovePlane(const Eigen::Vector3d& down, double height_m) {
